@@ -1,0 +1,101 @@
+// The batch simulator: the ray kernel behind vision and lidar (rays/s, SIMD vs scalar) and the whole batch
+// step (env-steps/s at 1 and 2 threads) with its per-phase rates.
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "batch/ray_kernels.hpp"
+#include "physics/presets.hpp"
+
+namespace {
+
+using hns::batch::AgentAction;
+using hns::batch::BatchConfig;
+using hns::batch::BatchSim;
+using hns::physics::Rng;
+
+// A full scene (2 v 2, 9 boxes, 2 ramps) after a few random steps, its shapes ready for ray casts.
+struct FullScene {
+  BatchSim sim;
+  FullScene() : sim(make_config()) {
+    std::vector<AgentAction> acts(size_t(sim.layout().max_agents), AgentAction{10, 5, 7, 0, 0});
+    for (int k = 0; k < 5; ++k) sim.step(acts);
+  }
+  static BatchConfig make_config() {
+    BatchConfig c;
+    c.world = hns::physics::WorldConfig::full();
+    hns::physics::apply_overrides(c.world, hns::physics::CountOverrides{2, 2, 9, 2});
+    c.num_envs = 1;
+    return c;
+  }
+  hns::batch::ShapesView shapes() const { return sim.shapes(0); }
+};
+
+// Lidar-like rays from agent 0 in 30 directions; rays/s as items/s.
+template <hns::batch::RayHit (*Cast)(const hns::batch::ShapesView&, const hns::batch::Ray&)>
+void BM_RayFirstHit(benchmark::State& state) {
+  FullScene scene;
+  const hns::batch::ShapesView shapes = scene.shapes();
+  const float* p = scene.sim.state().agent_pos.data();
+  std::vector<hns::batch::Ray> rays;
+  for (int k = 0; k < 30; ++k) {
+    const double a = 2 * 3.14159265358979 * k / 30;
+    rays.push_back(
+        {p[0], p[1], p[2], float(std::cos(a)), float(std::sin(a)), 0.0f, 6.0f, shapes.sphere_id(0)});
+  }
+  for (auto _ : state) {
+    for (const hns::batch::Ray& r : rays) benchmark::DoNotOptimize(Cast(shapes, r));
+  }
+  state.SetItemsProcessed(state.iterations() * int64_t(rays.size()));
+  state.counters["shapes"] = shapes.num_boxes + shapes.num_wedges + shapes.num_spheres;
+}
+BENCHMARK(BM_RayFirstHit<hns::batch::first_hit>)->Name("BM_RayFirstHit/simd");
+BENCHMARK(BM_RayFirstHit<hns::batch::first_hit_scalar>)->Name("BM_RayFirstHit/scalar");
+
+// Whole batch step of 64 envs with random actions; items/s = env-steps/s. Counters give each phase's rate
+// in env-steps per second of thread time (vision+lidar, observation packing, physics).
+void batch_step(benchmark::State& state, const char* scene) {
+  BatchConfig config;
+  config.world = hns::physics::world_preset(scene);
+  config.num_envs = 64;
+  config.threads = int(state.range(0));
+  BatchSim sim(config);
+  std::vector<AgentAction> acts(size_t(config.num_envs) * sim.layout().max_agents);
+  Rng rng(1, 2, 3);
+  sim.reset_timers();
+  for (auto _ : state) {
+    state.PauseTiming();
+    for (AgentAction& a : acts) {
+      a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                      uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                      uint8_t(rng.uniform_int(0, 2))};
+    }
+    state.ResumeTiming();
+    sim.step(acts);
+  }
+  const double env_steps = double(state.iterations()) * config.num_envs;
+  state.SetItemsProcessed(int64_t(env_steps));
+  const hns::batch::PhaseTimes& ph = sim.phase_times();
+  state.counters["physics_env_steps_per_s"] = env_steps / ph.physics;
+  state.counters["vision_lidar_env_steps_per_s"] = env_steps / ph.perception;
+  state.counters["observations_env_steps_per_s"] = env_steps / ph.observations;
+}
+void BM_BatchStepQuadrant(benchmark::State& state) {
+  batch_step(state, "quadrant");
+}
+void BM_BatchStepFull(benchmark::State& state) {
+  batch_step(state, "full");
+}
+BENCHMARK(BM_BatchStepQuadrant)
+    ->Arg(1)
+    ->Arg(2)
+    ->ArgName("threads")
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_BatchStepFull)->Arg(1)->Arg(2)->ArgName("threads")->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+
+BENCHMARK_MAIN();

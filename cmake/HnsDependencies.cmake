@@ -1,0 +1,53 @@
+# Finds hns's dependencies (all from Debian 12 packages) and fails with the package to install.
+find_package(PkgConfig QUIET)
+
+function(hns_missing what package)
+  message(FATAL_ERROR "hns: ${what} not found. Install it with: apt-get install ${package} "
+                      "(tools/run and tools/test install every missing package themselves).")
+endfunction()
+
+# ODE (double precision, Debian libode-dev). Linked as a shared library: hns interposes ODE's
+# dRandInt with a per-world stream for determinism (see src/physics/ode_runtime.cpp).
+if(NOT PkgConfig_FOUND)
+  hns_missing("pkg-config" "pkg-config")
+endif()
+pkg_check_modules(ODE IMPORTED_TARGET ode)
+if(NOT ODE_FOUND)
+  hns_missing("ODE (Open Dynamics Engine)" "libode-dev")
+endif()
+
+find_package(Eigen3 3.4 QUIET NO_MODULE)
+if(NOT Eigen3_FOUND)
+  hns_missing("Eigen 3.4" "libeigen3-dev")
+endif()
+find_package(xsimd QUIET)
+if(NOT xsimd_FOUND)
+  hns_missing("xsimd" "libxsimd-dev")
+endif()
+# Debian's xsimd 8 target names the optional xtl library as a link dependency although hns uses no xtl
+# feature; drop it so nothing tries to link -lxtl.
+set_target_properties(xsimd PROPERTIES INTERFACE_LINK_LIBRARIES "")
+find_package(TBB QUIET COMPONENTS tbb)
+if(NOT TBB_FOUND)
+  hns_missing("oneTBB" "libtbb-dev")
+endif()
+find_package(CLI11 QUIET)
+if(NOT CLI11_FOUND)
+  hns_missing("CLI11" "libcli11-dev")
+endif()
+find_package(nlohmann_json 3 QUIET)
+if(NOT nlohmann_json_FOUND)
+  hns_missing("nlohmann-json" "nlohmann-json3-dev")
+endif()
+if(HNS_BUILD_TESTS)
+  find_package(GTest QUIET)
+  if(NOT GTest_FOUND)
+    hns_missing("GoogleTest" "libgtest-dev")
+  endif()
+endif()
+if(HNS_BUILD_BENCH)
+  find_package(benchmark QUIET)
+  if(NOT benchmark_FOUND)
+    hns_missing("Google Benchmark" "libbenchmark-dev")
+  endif()
+endif()

@@ -1,0 +1,631 @@
+#include "batch/batch_sim.hpp"
+
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+
+namespace hns::batch {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr float kPi = 3.14159265358979323846f;
+constexpr float kOutOfBoundsReward = -10.0f;  // SPEC §5.2
+constexpr float kAgentRadius = float(physics::kAgentRadius);
+
+int round_up(int n, int m) {
+  return (n + m - 1) / m * m;
+}
+
+int64_t elapsed_ns(Clock::time_point& since) {
+  const Clock::time_point now = Clock::now();
+  const int64_t ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now - since).count();
+  since = now;
+  return ns;
+}
+
+// Most wall pieces a scene of this config can have (each interior wall splits in two at its door).
+int max_walls(const physics::SceneConfig& scene) {
+  switch (scene.layout) {
+    case physics::Layout::kQuadrant:
+      return 4 + 2 * 2;
+    case physics::Layout::kRandomWalls:
+      return 4 + 2 * std::max(0, scene.rooms.max - 1);
+    default:
+      return 4;
+  }
+}
+
+// Lidar directions: world-fixed, 12° apart from +x (SPEC §4.2).
+struct LidarDirections {
+  float cos[Layout::kLidar], sin[Layout::kLidar];
+  LidarDirections() {
+    for (int k = 0; k < Layout::kLidar; ++k) {
+      const double angle = 2.0 * 3.14159265358979323846 * k / Layout::kLidar;
+      cos[k] = float(std::cos(angle));
+      sin[k] = float(std::sin(angle));
+    }
+  }
+};
+const LidarDirections kLidarDirs;
+const float kCosHalfCone = float(std::cos(physics::kVisionHalfAngle));
+
+}  // namespace
+
+// Per-env bookkeeping that is not part of the observable state.
+struct BatchSim::EnvScratch {
+  bool finished = false;  // an episode ended during the last step
+  EpisodeStats stats;
+  int64_t unstable_resets = 0;
+  int64_t ns_physics = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
+};
+
+void BatchConfig::validate() const {
+  world.validate();
+  auto check = [](bool ok, const char* field, long long value, const char* allowed) {
+    if (!ok) {
+      std::ostringstream out;
+      out << field << " = " << value << " is invalid: " << allowed;
+      throw physics::ConfigError(out.str());
+    }
+  };
+  check(num_envs >= 1 && num_envs <= (1 << 22), "envs", num_envs, "must be in [1, 4194304]");
+  check(threads >= 1 && threads <= 4096, "threads", threads, "must be in [1, 4096]");
+  check(envs_per_task >= 1, "envs_per_task", envs_per_task, "must be >= 1");
+}
+
+void BatchState::allocate(const Layout& L, int num_envs) {
+#define HNS_ALLOCATE_FIELD(type, name, count, doc) name.resize(size_t(num_envs) * size_t(count));
+  HNS_BATCH_FIELDS(HNS_ALLOCATE_FIELD)
+#undef HNS_ALLOCATE_FIELD
+}
+
+BatchSim::BatchSim(const BatchConfig& config) : config_(config) {
+  config_.validate();
+  config_.world.compute_visibility = false;  // the batch's SIMD vision fills it
+  const physics::SceneConfig& scene = config_.world.scene;
+  layout_.max_agents = config_.world.max_agents();
+  layout_.max_boxes = scene.boxes.max;
+  layout_.max_ramps = scene.ramps.max;
+  layout_.max_walls = max_walls(scene);
+  layout_.others = std::max(0, layout_.max_agents - 1);
+  layout_.shape_boxes = round_up(std::max(1, layout_.max_walls + layout_.max_boxes), kRayWidth);
+  layout_.shape_wedges = round_up(std::max(1, layout_.max_ramps), kRayWidth);
+  layout_.shape_spheres = round_up(std::max(1, layout_.max_agents), kRayWidth);
+  state_.allocate(layout_, config_.num_envs);
+  worlds_.reserve(config_.num_envs);
+  for (int e = 0; e < config_.num_envs; ++e) {
+    worlds_.push_back(std::make_unique<physics::World>(config_.world, config_.seed, uint64_t(e)));
+  }
+  scratch_.resize(config_.num_envs);
+  reset();
+}
+
+BatchSim::~BatchSim() = default;
+
+void BatchSim::reset() {
+  tbb::task_arena arena(config_.threads);
+  arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
+        [&](const tbb::blocked_range<int>& r) {
+          for (int e = r.begin(); e != r.end(); ++e) {
+            reset_env(e, 0);
+            observe_env(e);
+            state_.done[e] = 0;
+            std::fill_n(state_.reward.data() + size_t(e) * layout_.max_agents, layout_.max_agents, 0.0f);
+          }
+        },
+        tbb::simple_partitioner());
+  });
+  finished_.clear();
+}
+
+void BatchSim::step(std::span<const AgentAction> actions) {
+  if (actions.size() != size_t(config_.num_envs) * layout_.max_agents) {
+    throw std::invalid_argument(
+        "BatchSim::step: got " + std::to_string(actions.size()) + " actions, expected " +
+        std::to_string(size_t(config_.num_envs) * layout_.max_agents) + " (envs x max agents)");
+  }
+  tbb::task_arena arena(config_.threads);
+  arena.execute([&] {
+    tbb::parallel_for(
+        tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
+        [&](const tbb::blocked_range<int>& r) { step_range(actions, r.begin(), r.end()); },
+        tbb::simple_partitioner());
+  });
+  collect_finished();
+}
+
+void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int end) {
+  const int A = layout_.max_agents;
+  for (int e = begin; e < end; ++e) {
+    EnvScratch& sc = scratch_[e];
+    sc.finished = false;
+    physics::World& world = *worlds_[e];
+    Clock::time_point t = Clock::now();
+    world.step(actions.subspan(size_t(e) * A, size_t(world.num_agents())));
+    sc.ns_physics += elapsed_ns(t);
+    if (world.unstable()) {
+      // Numerical trouble stays in this env: drop the episode, start a new one.
+      ++sc.unstable_resets;
+      std::fill_n(state_.reward.data() + size_t(e) * A, A, 0.0f);
+      end_episode_env(e, true);
+      sc.ns_rewards += elapsed_ns(t);
+    } else {
+      refresh_env(e);
+      sc.ns_perception += elapsed_ns(t);
+      rewards_env(e);
+      if (state_.done[e] != 0) end_episode_env(e, false);
+      sc.ns_rewards += elapsed_ns(t);
+    }
+    observe_env(e);
+    sc.ns_observations += elapsed_ns(t);
+  }
+}
+
+void BatchSim::collect_finished() {
+  finished_.clear();
+  for (int e = 0; e < config_.num_envs; ++e) {
+    EnvScratch& sc = scratch_[e];
+    if (sc.finished) finished_.push_back(sc.stats);
+    phase_times_.physics += sc.ns_physics * 1e-9;
+    phase_times_.perception += sc.ns_perception * 1e-9;
+    phase_times_.observations += sc.ns_observations * 1e-9;
+    phase_times_.rewards += sc.ns_rewards * 1e-9;
+    sc.ns_physics = sc.ns_perception = sc.ns_observations = sc.ns_rewards = 0;
+  }
+}
+
+int64_t BatchSim::unstable_resets() const {
+  int64_t n = 0;
+  for (const EnvScratch& sc : scratch_) n += sc.unstable_resets;
+  return n;
+}
+
+void BatchSim::load_scene(int env, const physics::Scene& scene) {
+  worlds_[env]->reset_with_scene(scene, uint64_t(state_.episode[env]));
+  start_episode_env(env, uint64_t(state_.episode[env]));
+  observe_env(env);
+  state_.done[env] = 0;
+  std::fill_n(state_.reward.data() + size_t(env) * layout_.max_agents, layout_.max_agents, 0.0f);
+}
+
+void BatchSim::reset_env(int env, uint64_t episode) {
+  worlds_[env]->reset(episode);
+  start_episode_env(env, episode);
+}
+
+void BatchSim::start_episode_env(int env, uint64_t episode) {
+  const physics::Scene& scene = worlds_[env]->scene();
+  if (int(scene.wall_boxes.size()) > layout_.max_walls) {
+    throw std::logic_error("scene has " + std::to_string(scene.wall_boxes.size()) + " walls, layout allows " +
+                           std::to_string(layout_.max_walls));
+  }
+  state_.episode[env] = int32_t(episode);
+  state_.step_count[env] = 0;
+  state_.num_walls[env] = int32_t(scene.wall_boxes.size());
+  std::fill_n(state_.stat_prep.data() + size_t(env) * 4, 4, 0.0f);
+  std::fill_n(state_.episode_return.data() + size_t(env) * 2, 2, 0.0f);
+  // Walls never move: their shapes are written once per episode.
+  const size_t sb = size_t(env) * layout_.shape_boxes;
+  for (int w = 0; w < int(scene.wall_boxes.size()); ++w) {
+    const physics::StaticBox& b = scene.wall_boxes[w];
+    state_.shape_box_cx[sb + w] = float(b.cx);
+    state_.shape_box_cy[sb + w] = float(b.cy);
+    state_.shape_box_cz[sb + w] = float(b.cz);
+    state_.shape_box_hx[sb + w] = float(b.hx);
+    state_.shape_box_hy[sb + w] = float(b.hy);
+    state_.shape_box_hz[sb + w] = float(b.hz);
+    state_.shape_box_c[sb + w] = 1.0f;
+    state_.shape_box_s[sb + w] = 0.0f;
+  }
+  refresh_env(env);
+  std::copy_n(state_.box_pos.data() + size_t(env) * layout_.max_boxes * 3, layout_.max_boxes * 3,
+              state_.box_pos_start.data() + size_t(env) * layout_.max_boxes * 3);
+  std::copy_n(state_.ramp_pos.data() + size_t(env) * layout_.max_ramps * 3, layout_.max_ramps * 3,
+              state_.ramp_pos_start.data() + size_t(env) * layout_.max_ramps * 3);
+}
+
+void BatchSim::refresh_env(int env) {
+  mirror_env(env);
+  build_shapes(env);
+  perceive_env(env);
+}
+
+namespace {
+// Copies the first `active` of `slots` bodies (get(i) -> BodyState) into SoA fields; later slots are zeroed.
+template <class Get>
+void mirror_bodies(int slots, int active, Get&& get, float* pos, float* rot, float* vel, float* angvel) {
+  for (int i = 0; i < slots; ++i) {
+    const physics::BodyState b = i < active ? get(i) : physics::BodyState{};
+    for (int k = 0; k < 3; ++k) {
+      pos[3 * i + k] = float(b.pos[k]);
+      vel[3 * i + k] = float(b.vel[k]);
+    }
+    rot[2 * i] = i < active ? float(std::cos(b.yaw)) : 0.0f;
+    rot[2 * i + 1] = i < active ? float(std::sin(b.yaw)) : 0.0f;
+    angvel[i] = float(b.ang_vel);
+  }
+}
+}  // namespace
+
+void BatchSim::mirror_env(int env) {
+  const physics::World& world = *worlds_[env];
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const size_t a0 = size_t(env) * L.max_agents, b0 = size_t(env) * L.max_boxes,
+               r0 = size_t(env) * L.max_ramps;
+  mirror_bodies(
+      L.max_agents, world.num_agents(), [&](int i) { return world.agent_state(i); }, &s.agent_pos[3 * a0],
+      &s.agent_rot[2 * a0], &s.agent_vel[3 * a0], &s.agent_angvel[a0]);
+  mirror_bodies(
+      L.max_boxes, world.num_boxes(), [&](int i) { return world.box_state(i); }, &s.box_pos[3 * b0],
+      &s.box_rot[2 * b0], &s.box_vel[3 * b0], &s.box_angvel[b0]);
+  mirror_bodies(
+      L.max_ramps, world.num_ramps(), [&](int i) { return world.ramp_state(i); }, &s.ramp_pos[3 * r0],
+      &s.ramp_rot[2 * r0], &s.ramp_vel[3 * r0], &s.ramp_angvel[r0]);
+  for (int a = 0; a < L.max_agents; ++a) {
+    const bool exists = a < world.num_agents();
+    s.agent_exists[a0 + a] = exists ? 1 : 0;
+    s.agent_hider[a0 + a] = exists && world.team(a) == physics::Team::kHider ? 1 : 0;
+  }
+  const physics::Scene& scene = world.scene();
+  for (int b = 0; b < L.max_boxes; ++b) {
+    const bool exists = b < world.num_boxes();
+    s.box_exists[b0 + b] = exists ? 1 : 0;
+    s.box_locked[b0 + b] = exists && world.object_locked(b) ? 1 : 0;
+    s.box_locker[b0 + b] = int8_t(exists ? world.object_locker(b) : -1);
+    s.box_size[3 * (b0 + b) + 0] = exists ? float(scene.boxes[b].sx) : 0.0f;
+    s.box_size[3 * (b0 + b) + 1] = exists ? float(scene.boxes[b].sy) : 0.0f;
+    s.box_size[3 * (b0 + b) + 2] = exists ? float(scene.boxes[b].sz) : 0.0f;
+  }
+  for (int r = 0; r < L.max_ramps; ++r) {
+    const bool exists = r < world.num_ramps();
+    const int object = world.num_boxes() + r;
+    s.ramp_exists[r0 + r] = exists ? 1 : 0;
+    s.ramp_locked[r0 + r] = exists && world.object_locked(object) ? 1 : 0;
+    s.ramp_locker[r0 + r] = int8_t(exists ? world.object_locker(object) : -1);
+  }
+}
+
+void BatchSim::build_shapes(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const int walls = s.num_walls[env];
+  const size_t sb = size_t(env) * L.shape_boxes;
+  for (int k = walls; k < L.shape_boxes; ++k) {
+    const int b = k - walls;
+    const size_t i = size_t(env) * L.max_boxes + b;
+    const bool exists = b < L.max_boxes && s.box_exists[i] != 0;
+    s.shape_box_cx[sb + k] = exists ? s.box_pos[3 * i] : 0.0f;
+    s.shape_box_cy[sb + k] = exists ? s.box_pos[3 * i + 1] : 0.0f;
+    s.shape_box_cz[sb + k] = exists ? s.box_pos[3 * i + 2] : kParkedZ;
+    s.shape_box_hx[sb + k] = exists ? 0.5f * s.box_size[3 * i] : 0.01f;
+    s.shape_box_hy[sb + k] = exists ? 0.5f * s.box_size[3 * i + 1] : 0.01f;
+    s.shape_box_hz[sb + k] = exists ? 0.5f * s.box_size[3 * i + 2] : 0.01f;
+    s.shape_box_c[sb + k] = exists ? s.box_rot[2 * i] : 1.0f;
+    s.shape_box_s[sb + k] = exists ? s.box_rot[2 * i + 1] : 0.0f;
+  }
+  const size_t sw = size_t(env) * L.shape_wedges;
+  for (int k = 0; k < L.shape_wedges; ++k) {
+    const size_t i = size_t(env) * L.max_ramps + k;
+    const bool exists = k < L.max_ramps && s.ramp_exists[i] != 0;
+    s.shape_wedge_cx[sw + k] = exists ? s.ramp_pos[3 * i] : 0.0f;
+    s.shape_wedge_cy[sw + k] = exists ? s.ramp_pos[3 * i + 1] : 0.0f;
+    s.shape_wedge_cz[sw + k] = exists ? s.ramp_pos[3 * i + 2] : kParkedZ;
+    s.shape_wedge_c[sw + k] = exists ? s.ramp_rot[2 * i] : 1.0f;
+    s.shape_wedge_s[sw + k] = exists ? s.ramp_rot[2 * i + 1] : 0.0f;
+  }
+  const size_t ss = size_t(env) * L.shape_spheres;
+  for (int k = 0; k < L.shape_spheres; ++k) {
+    const size_t i = size_t(env) * L.max_agents + k;
+    const bool exists = k < L.max_agents && s.agent_exists[i] != 0;
+    s.shape_sphere_cx[ss + k] = exists ? s.agent_pos[3 * i] : 0.0f;
+    s.shape_sphere_cy[ss + k] = exists ? s.agent_pos[3 * i + 1] : 0.0f;
+    s.shape_sphere_cz[ss + k] = exists ? s.agent_pos[3 * i + 2] : kParkedZ;
+    s.shape_sphere_r[ss + k] = exists ? kAgentRadius : 0.01f;
+  }
+}
+
+namespace {
+// Cone test (SPEC §4.1): the target lies within 67.5° of the viewer's facing direction (−y at yaw 0).
+bool in_cone(const float* viewer_pos, const float* viewer_rot, const float* target_pos) {
+  const float dx = target_pos[0] - viewer_pos[0], dy = target_pos[1] - viewer_pos[1];
+  const float fx = viewer_rot[1], fy = -viewer_rot[0];
+  const float len = std::sqrt(dx * dx + dy * dy);
+  return len == 0.0f || dx * fx + dy * fy >= kCosHalfCone * len;
+}
+}  // namespace
+
+ShapesView BatchSim::shapes(int env) const {
+  const BatchState& s = state_;
+  const size_t b = size_t(env) * layout_.shape_boxes, w = size_t(env) * layout_.shape_wedges;
+  const size_t p = size_t(env) * layout_.shape_spheres;
+  return ShapesView{
+      &s.shape_box_cx[b],    &s.shape_box_cy[b],    &s.shape_box_cz[b],   &s.shape_box_hx[b],
+      &s.shape_box_hy[b],    &s.shape_box_hz[b],    &s.shape_box_c[b],    &s.shape_box_s[b],
+      layout_.shape_boxes,   &s.shape_wedge_cx[w],  &s.shape_wedge_cy[w], &s.shape_wedge_cz[w],
+      &s.shape_wedge_c[w],   &s.shape_wedge_s[w],   layout_.shape_wedges, &s.shape_sphere_cx[p],
+      &s.shape_sphere_cy[p], &s.shape_sphere_cz[p], &s.shape_sphere_r[p], layout_.shape_spheres};
+}
+
+void BatchSim::perceive_env(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const ShapesView shapes = this->shapes(env);
+  const int walls = s.num_walls[env];
+  const float* agent_pos = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
+  const float* agent_rot = s.agent_rot.data() + size_t(env) * L.max_agents * 2;
+  const uint8_t* agent_exists = s.agent_exists.data() + size_t(env) * L.max_agents;
+  const float* box_pos = s.box_pos.data() + size_t(env) * L.max_boxes * 3;
+  const uint8_t* box_exists = s.box_exists.data() + size_t(env) * L.max_boxes;
+  const float* ramp_pos = s.ramp_pos.data() + size_t(env) * L.max_ramps * 3;
+  const uint8_t* ramp_exists = s.ramp_exists.data() + size_t(env) * L.max_ramps;
+  uint8_t* vis_agents = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
+  uint8_t* vis_boxes = s.vis_boxes.data() + size_t(env) * L.max_agents * L.max_boxes;
+  uint8_t* vis_ramps = s.vis_ramps.data() + size_t(env) * L.max_agents * L.max_ramps;
+  float* lidar = s.lidar.data() + size_t(env) * L.max_agents * Layout::kLidar;
+
+  // Visible = in the cone and the first shape on the segment to the target's centre is the target.
+  auto sees = [&](int viewer, const float* target, int target_id) {
+    const float* o = agent_pos + 3 * viewer;
+    if (!in_cone(o, agent_rot + 2 * viewer, target)) return false;
+    const float dx = target[0] - o[0], dy = target[1] - o[1], dz = target[2] - o[2];
+    const float len = std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (len < 1e-6f) return true;
+    const Ray ray{o[0], o[1], o[2], dx / len, dy / len, dz / len, len, shapes.sphere_id(viewer)};
+    return first_hit(shapes, ray).id == target_id;
+  };
+  for (int a = 0; a < L.max_agents; ++a) {
+    const bool viewer = agent_exists[a] != 0;
+    for (int j = 0; j < L.max_agents; ++j) {
+      vis_agents[a * L.max_agents + j] =
+          viewer && agent_exists[j] != 0 && (j == a || sees(a, agent_pos + 3 * j, shapes.sphere_id(j))) ? 1
+                                                                                                        : 0;
+    }
+    for (int b = 0; b < L.max_boxes; ++b) {
+      vis_boxes[a * L.max_boxes + b] =
+          viewer && box_exists[b] != 0 && sees(a, box_pos + 3 * b, walls + b) ? 1 : 0;
+    }
+    for (int r = 0; r < L.max_ramps; ++r) {
+      vis_ramps[a * L.max_ramps + r] =
+          viewer && ramp_exists[r] != 0 && sees(a, ramp_pos + 3 * r, shapes.wedge_id(r)) ? 1 : 0;
+    }
+    // Lidar: 30 world-fixed horizontal rays, first hit within 6 m, else 6 (SPEC §14.6).
+    float* out = lidar + a * Layout::kLidar;
+    if (!viewer) {
+      std::fill_n(out, Layout::kLidar, 0.0f);
+      continue;
+    }
+    const float* o = agent_pos + 3 * a;
+    for (int k = 0; k < Layout::kLidar; ++k) {
+      const Ray ray{o[0],
+                    o[1],
+                    o[2],
+                    kLidarDirs.cos[k],
+                    kLidarDirs.sin[k],
+                    0.0f,
+                    float(physics::kLidarRange),
+                    shapes.sphere_id(a)};
+      const RayHit hit = first_hit(shapes, ray);
+      out[k] = hit.id >= 0 ? hit.t : float(physics::kLidarRange);
+    }
+  }
+  // The world's grab and lock use this step's object visibility in the next step.
+  physics::World& world = *worlds_[env];
+  std::span<uint8_t> object_vis = world.object_visibility();
+  const int n_obj = world.num_objects();
+  for (int a = 0; a < world.num_agents(); ++a) {
+    for (int b = 0; b < world.num_boxes(); ++b) object_vis[a * n_obj + b] = vis_boxes[a * L.max_boxes + b];
+    for (int r = 0; r < world.num_ramps(); ++r) {
+      object_vis[a * n_obj + world.num_boxes() + r] = vis_ramps[a * L.max_ramps + r];
+    }
+  }
+}
+
+void BatchSim::rewards_env(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const physics::WorldConfig& wc = config_.world;
+  const physics::World& world = *worlds_[env];
+  const int t = world.step_count();
+  s.step_count[env] = t;
+  const int n = world.num_agents();
+  const float* pos = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
+  const uint8_t* hider = s.agent_hider.data() + size_t(env) * L.max_agents;
+  const uint8_t* vis = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
+  const double* rect = wc.restrict_rect;
+  auto outside = [rect](const float* p) {
+    return p[0] < rect[0] || p[0] > rect[2] || p[1] < rect[1] || p[1] > rect[3];
+  };
+
+  // Joint zero-sum (SPEC §5.1): every hider gets -1 if any hider is seen by any seeker, else +1; seekers the
+  // opposite. Out of bounds replaces an agent's reward with -10; in the quadrant game any box or ramp out of
+  // bounds costs everyone -10 (§5.2). Everything is 0 during the preparation phase.
+  bool any_seen = false;
+  for (int sk = 0; sk < n; ++sk) {
+    if (hider[sk] != 0) continue;
+    for (int h = 0; h < n; ++h) any_seen = any_seen || (hider[h] != 0 && vis[sk * L.max_agents + h] != 0);
+  }
+  bool objects_out = false;
+  if (wc.penalize_objects_out) {
+    for (int b = 0; b < world.num_boxes(); ++b)
+      objects_out = objects_out || outside(&s.box_pos[(size_t(env) * L.max_boxes + b) * 3]);
+    for (int r = 0; r < world.num_ramps(); ++r)
+      objects_out = objects_out || outside(&s.ramp_pos[(size_t(env) * L.max_ramps + r) * 3]);
+  }
+  const bool prep = t <= wc.prep_steps();
+  float* reward = s.reward.data() + size_t(env) * L.max_agents;
+  float hider_sum = 0, seeker_sum = 0;
+  int hiders = 0;
+  for (int a = 0; a < L.max_agents; ++a) {
+    float r = 0.0f;
+    if (a < n && !prep) {
+      r = (hider[a] != 0) == any_seen ? -1.0f : 1.0f;
+      if (objects_out || outside(pos + 3 * a)) r = kOutOfBoundsReward;
+    }
+    reward[a] = r;
+    if (a < n) {
+      (hider[a] != 0 ? hider_sum : seeker_sum) += r;
+      hiders += hider[a];
+    }
+  }
+  float* ret = s.episode_return.data() + size_t(env) * 2;
+  if (hiders > 0) ret[0] += hider_sum / hiders;
+  if (n - hiders > 0) ret[1] += seeker_sum / (n - hiders);
+
+  // Statistics at the end of the preparation phase (SPEC §7).
+  if (t == wc.prep_steps()) measure_env(env, s.stat_prep.data() + size_t(env) * 4);
+  s.done[env] = world.done() ? 1 : 0;
+}
+
+void BatchSim::measure_env(int env, float out[4]) const {
+  const Layout& L = layout_;
+  const BatchState& s = state_;
+  auto max_move = [](const float* pos, const float* start, const uint8_t* exists, int n) {
+    float best = 0.0f;
+    for (int i = 0; i < n; ++i) {
+      if (exists[i] == 0) continue;
+      const float dx = pos[3 * i] - start[3 * i], dy = pos[3 * i + 1] - start[3 * i + 1];
+      const float dz = pos[3 * i + 2] - start[3 * i + 2];
+      best = std::max(best, std::sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    return best;
+  };
+  auto count = [](const uint8_t* flags, int n) {
+    int c = 0;
+    for (int i = 0; i < n; ++i) c += flags[i];
+    return float(c);
+  };
+  const size_t b = size_t(env) * L.max_boxes, r = size_t(env) * L.max_ramps;
+  out[0] = max_move(&s.box_pos[3 * b], &s.box_pos_start[3 * b], &s.box_exists[b], L.max_boxes);
+  out[1] = count(&s.box_locked[b], L.max_boxes);
+  out[2] = max_move(&s.ramp_pos[3 * r], &s.ramp_pos_start[3 * r], &s.ramp_exists[r], L.max_ramps);
+  out[3] = count(&s.ramp_locked[r], L.max_ramps);
+}
+
+// Records the finished episode's statistics and starts the env's next episode.
+void BatchSim::end_episode_env(int env, bool discarded) {
+  BatchState& s = state_;
+  EnvScratch& sc = scratch_[env];
+  EpisodeStats& st = sc.stats;
+  const float* prep = s.stat_prep.data() + size_t(env) * 4;
+  float end[4];
+  measure_env(env, end);
+  st.env = env;
+  st.episode = s.episode[env];
+  st.length = worlds_[env]->step_count();
+  st.discarded = discarded;
+  st.hider_return = s.episode_return[size_t(env) * 2];
+  st.seeker_return = s.episode_return[size_t(env) * 2 + 1];
+  st.max_box_move_prep = prep[0];
+  st.num_box_lock_prep = prep[1];
+  st.max_ramp_move_prep = prep[2];
+  st.num_ramp_lock_prep = prep[3];
+  st.max_box_move = end[0];
+  st.num_box_lock = end[1];
+  st.max_ramp_move = end[2];
+  st.num_ramp_lock = end[3];
+  sc.finished = true;
+  reset_env(env, uint64_t(s.episode[env]) + 1);
+  s.done[env] = 1;
+}
+
+// Observation tensors of every agent of the env (SPEC §4.3-§4.6, §14.1). Other agents come in circulant
+// order i-1, i-2, ... (mod n); boxes and ramps in index order; padding slots are zero with mask 0.
+void BatchSim::observe_env(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const physics::World& world = *worlds_[env];
+  const int A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others;
+  const int n = world.num_agents(), nb = world.num_boxes(), nr = world.num_ramps();
+  const size_t ea = size_t(env) * A;
+  float* obs_self = s.obs_self.data() + ea * Layout::kSelfFeatures;
+  float* obs_agents = s.obs_agents.data() + ea * O * Layout::kAgentFeatures;
+  uint8_t* mask_agents = s.mask_agents.data() + ea * O;
+  uint8_t* value_mask_agents = s.value_mask_agents.data() + ea * O;
+  float* obs_boxes = s.obs_boxes.data() + ea * B * Layout::kBoxFeatures;
+  uint8_t* mask_boxes = s.mask_boxes.data() + ea * B;
+  uint8_t* value_mask_boxes = s.value_mask_boxes.data() + ea * B;
+  float* obs_ramps = s.obs_ramps.data() + ea * R * Layout::kRampFeatures;
+  uint8_t* mask_ramps = s.mask_ramps.data() + ea * R;
+  uint8_t* value_mask_ramps = s.value_mask_ramps.data() + ea * R;
+  std::fill_n(obs_self, size_t(A) * Layout::kSelfFeatures, 0.0f);
+  std::fill_n(obs_agents, size_t(A) * O * Layout::kAgentFeatures, 0.0f);
+  std::fill_n(mask_agents, size_t(A) * O, 0);
+  std::fill_n(value_mask_agents, size_t(A) * O, 0);
+  std::fill_n(obs_boxes, size_t(A) * B * Layout::kBoxFeatures, 0.0f);
+  std::fill_n(mask_boxes, size_t(A) * B, 0);
+  std::fill_n(value_mask_boxes, size_t(A) * B, 0);
+  std::fill_n(obs_ramps, size_t(A) * R * Layout::kRampFeatures, 0.0f);
+  std::fill_n(mask_ramps, size_t(A) * R, 0);
+  std::fill_n(value_mask_ramps, size_t(A) * R, 0);
+
+  // prep_obs rises from 0 to 1 over the preparation phase (SPEC §4.3).
+  const int t = s.step_count[env];
+  const float prep_obs = std::min(1.0f, float(t) / (float(config_.world.prep_steps()) + 1e-5f));
+  const float* pos = s.agent_pos.data() + ea * 3;
+  const float* rot = s.agent_rot.data() + ea * 2;
+  const float* vel = s.agent_vel.data() + ea * 3;
+  const float* angvel = s.agent_angvel.data() + ea;
+  const uint8_t* hider = s.agent_hider.data() + ea;
+  auto agent_features = [&](int j, float* out) {
+    out[0] = pos[3 * j], out[1] = pos[3 * j + 1], out[2] = pos[3 * j + 2];
+    out[3] = rot[2 * j], out[4] = rot[2 * j + 1];
+    out[5] = vel[3 * j], out[6] = vel[3 * j + 1], out[7] = vel[3 * j + 2];
+    out[8] = angvel[j];
+    out[9] = float(hider[j]);
+    out[10] = prep_obs;
+  };
+  // Lock features of an object for agent a: it locked it, its team did, it is locked (SPEC §3.4).
+  auto lock_features = [&](bool locked, int locker, int a, float* out) {
+    out[0] = locked && locker == a ? 1.0f : 0.0f;
+    out[1] = locked && locker >= 0 && hider[locker] == hider[a] ? 1.0f : 0.0f;
+    out[2] = locked ? 1.0f : 0.0f;
+  };
+  const uint8_t* vis_agents = s.vis_agents.data() + ea * A;
+  const uint8_t* vis_boxes = s.vis_boxes.data() + ea * B;
+  const uint8_t* vis_ramps = s.vis_ramps.data() + ea * R;
+  for (int a = 0; a < n; ++a) {
+    agent_features(a, obs_self + a * Layout::kSelfFeatures);
+    for (int k = 0; k < n - 1; ++k) {
+      const int j = ((a - 1 - k) % n + n) % n;
+      agent_features(j, obs_agents + (size_t(a) * O + k) * Layout::kAgentFeatures);
+      mask_agents[a * O + k] = vis_agents[a * A + j];
+      value_mask_agents[a * O + k] = 1;
+    }
+    for (int b = 0; b < nb; ++b) {
+      const size_t i = size_t(env) * B + b;
+      float* out = obs_boxes + (size_t(a) * B + b) * Layout::kBoxFeatures;
+      std::copy_n(&s.box_pos[3 * i], 3, out);
+      std::copy_n(&s.box_rot[2 * i], 2, out + 3);
+      std::copy_n(&s.box_vel[3 * i], 3, out + 5);
+      out[8] = s.box_angvel[i];
+      std::copy_n(&s.box_size[3 * i], 3, out + 9);
+      lock_features(s.box_locked[i] != 0, s.box_locker[i], a, out + 12);
+      mask_boxes[a * B + b] = vis_boxes[a * B + b];
+      value_mask_boxes[a * B + b] = 1;
+    }
+    for (int r = 0; r < nr; ++r) {
+      const size_t i = size_t(env) * R + r;
+      float* out = obs_ramps + (size_t(a) * R + r) * Layout::kRampFeatures;
+      std::copy_n(&s.ramp_pos[3 * i], 3, out);
+      std::copy_n(&s.ramp_rot[2 * i], 2, out + 3);
+      std::copy_n(&s.ramp_vel[3 * i], 3, out + 5);
+      out[8] = s.ramp_angvel[i];
+      lock_features(s.ramp_locked[i] != 0, s.ramp_locker[i], a, out + 9);
+      mask_ramps[a * R + r] = vis_ramps[a * R + r];
+      value_mask_ramps[a * R + r] = 1;
+    }
+  }
+}
+
+}  // namespace hns::batch

@@ -1,0 +1,221 @@
+// BatchSim: many hide-and-seek worlds stepped together, their state mirrored as structure-of-arrays, with
+// vision, lidar, observations, rewards, statistics and auto-reset (SPEC.md §3-§7, §14).
+//
+// One step, per env (TBB over fixed ranges of envs; step_range() is the same code run serially):
+//   actions[env, agent] -> World::step (grab, lock, substeps) -> mirror bodies into the SoA fields
+//   -> shapes for ray casts -> vision (cone + line of sight) and lidar -> rewards, dones, statistics
+//   -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "batch/aligned_buffer.hpp"
+#include "batch/ray_kernels.hpp"
+#include "physics/world.hpp"
+
+namespace hns::batch {
+
+using physics::AgentAction;
+
+struct BatchConfig {
+  physics::WorldConfig world = physics::WorldConfig::quadrant();
+  int num_envs = 64;
+  int threads = 1;        // TBB worker threads used by step()
+  uint64_t seed = 1;      // env e's episode k is drawn from (seed, e, k)
+  int envs_per_task = 4;  // fixed work partition, independent of the thread count
+  // Throws physics::ConfigError naming the first bad field.
+  void validate() const;
+};
+
+// Per-env sizes of every tensor, fixed per batch by the config's maxima.
+struct Layout {
+  int max_agents = 0;   // A
+  int max_boxes = 0;    // B
+  int max_ramps = 0;    // R
+  int max_walls = 0;    // walls a scene may have
+  int others = 0;       // A - 1 other-agent slots
+  int shape_boxes = 0;  // walls + boxes, padded to kRayWidth
+  int shape_wedges = 0;
+  int shape_spheres = 0;
+  static constexpr int kSelfFeatures = 11;   // pos 3, cos/sin yaw, vel 3, ang vel, hider, prep
+  static constexpr int kAgentFeatures = 11;  // the same for another agent
+  static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock
+  static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
+  static constexpr int kLidar = 30;
+};
+
+// Every per-env field of the batch: X(type, name, elements per env, doc). Env index outermost; one
+// aligned buffer per field; slots beyond an episode's counts are zero and masked out.
+#define HNS_BATCH_FIELDS(X)                                                                                \
+  /* Bodies, true centres (SPEC §14.1). */                                                                \
+  X(float, agent_pos, L.max_agents * 3, "agent centre, m (envs x A x 3)")                                  \
+  X(float, agent_rot, L.max_agents * 2, "agent yaw as (cos, sin) (envs x A x 2)")                          \
+  X(float, agent_vel, L.max_agents * 3, "agent velocity, m/s (envs x A x 3)")                              \
+  X(float, agent_angvel, L.max_agents, "agent angular velocity about z, rad/s (envs x A)")                 \
+  X(uint8_t, agent_exists, L.max_agents, "1 if the slot holds an agent this episode (envs x A)")           \
+  X(uint8_t, agent_hider, L.max_agents, "1 for hiders, 0 for seekers (envs x A)")                          \
+  X(float, box_pos, L.max_boxes * 3, "box centre, m (envs x B x 3)")                                       \
+  X(float, box_rot, L.max_boxes * 2, "box yaw as (cos, sin) (envs x B x 2)")                               \
+  X(float, box_vel, L.max_boxes * 3, "box velocity, m/s (envs x B x 3)")                                   \
+  X(float, box_angvel, L.max_boxes, "box angular velocity, rad/s (envs x B)")                              \
+  X(float, box_size, L.max_boxes * 3, "box full extents, m (envs x B x 3)")                                \
+  X(uint8_t, box_exists, L.max_boxes, "1 if the box slot is used (envs x B)")                              \
+  X(uint8_t, box_locked, L.max_boxes, "1 if pinned (envs x B)")                                            \
+  X(int8_t, box_locker, L.max_boxes, "agent that locked it last, -1 never (envs x B)")                     \
+  X(float, ramp_pos, L.max_ramps * 3, "ramp bounding-box centre, m (envs x R x 3)")                        \
+  X(float, ramp_rot, L.max_ramps * 2, "ramp yaw as (cos, sin) (envs x R x 2)")                             \
+  X(float, ramp_vel, L.max_ramps * 3, "ramp velocity, m/s (envs x R x 3)")                                 \
+  X(float, ramp_angvel, L.max_ramps, "ramp angular velocity, rad/s (envs x R)")                            \
+  X(uint8_t, ramp_exists, L.max_ramps, "1 if the ramp slot is used (envs x R)")                            \
+  X(uint8_t, ramp_locked, L.max_ramps, "1 if pinned (envs x R)")                                           \
+  X(int8_t, ramp_locker, L.max_ramps, "agent that locked it last, -1 never (envs x R)")                    \
+  /* Shapes for ray casts: walls then boxes, ramps, agents; padding parked below the floor. */             \
+  X(float, shape_box_cx, L.shape_boxes, "box-shaped occluder centre x, m (envs x SB)")                     \
+  X(float, shape_box_cy, L.shape_boxes, "centre y, m")                                                     \
+  X(float, shape_box_cz, L.shape_boxes, "centre z, m")                                                     \
+  X(float, shape_box_hx, L.shape_boxes, "half extent x, m")                                                \
+  X(float, shape_box_hy, L.shape_boxes, "half extent y, m")                                                \
+  X(float, shape_box_hz, L.shape_boxes, "half extent z, m")                                                \
+  X(float, shape_box_c, L.shape_boxes, "cos yaw")                                                          \
+  X(float, shape_box_s, L.shape_boxes, "sin yaw")                                                          \
+  X(float, shape_wedge_cx, L.shape_wedges, "ramp occluder centre x, m (envs x SW)")                        \
+  X(float, shape_wedge_cy, L.shape_wedges, "centre y, m")                                                  \
+  X(float, shape_wedge_cz, L.shape_wedges, "centre z, m")                                                  \
+  X(float, shape_wedge_c, L.shape_wedges, "cos yaw")                                                       \
+  X(float, shape_wedge_s, L.shape_wedges, "sin yaw")                                                       \
+  X(float, shape_sphere_cx, L.shape_spheres, "agent occluder centre x, m (envs x SS)")                     \
+  X(float, shape_sphere_cy, L.shape_spheres, "centre y, m")                                                \
+  X(float, shape_sphere_cz, L.shape_spheres, "centre z, m")                                                \
+  X(float, shape_sphere_r, L.shape_spheres, "radius, m")                                                   \
+  X(int32_t, num_walls, 1, "walls of this episode's scene (envs)")                                         \
+  /* Perception (SPEC §4.1, §4.2). */                                                                    \
+  X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")    \
+  X(uint8_t, vis_boxes, L.max_agents* L.max_boxes, "agent sees box (envs x A x B)")                        \
+  X(uint8_t, vis_ramps, L.max_agents* L.max_ramps, "agent sees ramp (envs x A x R)")                       \
+  X(float, lidar, L.max_agents* Layout::kLidar, "lidar distance, m, 6 = nothing (envs x A x 30)")          \
+  /* Step outputs (SPEC §5). */                                                                           \
+  X(float, reward, L.max_agents, "reward of the last step (envs x A)")                                     \
+  X(uint8_t, done, 1, "1 if the last step ended the episode; the obs is then the new episode's first")     \
+  X(int32_t, step_count, 1, "env steps taken in the current episode (envs)")                               \
+  X(int32_t, episode, 1, "episode number of the env (envs)")                                               \
+  /* Episode statistics (SPEC §7). */                                                                     \
+  X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                        \
+  X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
+  X(float, stat_prep, 4, "at the end of prep: max box move, boxes locked, max ramp move, ramps locked")    \
+  X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
+  /* Observations per agent (SPEC §4.3-§4.6 with §14.1). */                                             \
+  X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                  \
+  X(float, obs_agents, L.max_agents* L.others* Layout::kAgentFeatures,                                     \
+    "other agents in circulant order (envs x A x A-1 x 11)")                                               \
+  X(uint8_t, mask_agents, L.max_agents* L.others, "policy mask: other agent seen (envs x A x A-1)")        \
+  X(uint8_t, value_mask_agents, L.max_agents* L.others, "value mask: other agent exists (envs x A x A-1)") \
+  X(float, obs_boxes, L.max_agents* L.max_boxes* Layout::kBoxFeatures, "boxes (envs x A x B x 15)")        \
+  X(uint8_t, mask_boxes, L.max_agents* L.max_boxes, "policy mask: box seen (envs x A x B)")                \
+  X(uint8_t, value_mask_boxes, L.max_agents* L.max_boxes, "value mask: box exists (envs x A x B)")         \
+  X(float, obs_ramps, L.max_agents* L.max_ramps* Layout::kRampFeatures, "ramps (envs x A x R x 12)")       \
+  X(uint8_t, mask_ramps, L.max_agents* L.max_ramps, "policy mask: ramp seen (envs x A x R)")               \
+  X(uint8_t, value_mask_ramps, L.max_agents* L.max_ramps, "value mask: ramp exists (envs x A x R)")
+
+// The batch state: one aligned buffer per field, sized num_envs x (elements per env).
+struct BatchState {
+#define HNS_DECLARE_FIELD(type, name, count, doc) AlignedBuffer<type> name;
+  HNS_BATCH_FIELDS(HNS_DECLARE_FIELD)
+#undef HNS_DECLARE_FIELD
+
+  void allocate(const Layout& L, int num_envs);
+  // Calls f(name, span_of_bytes) for every field, in declaration order (copy, compare, checksum).
+  template <class F>
+  void for_each_field(F&& f) const {
+#define HNS_VISIT_FIELD(type, name, count, doc) \
+  f(#name,                                      \
+    std::span<const uint8_t>(reinterpret_cast<const uint8_t*>(name.data()), name.size() * sizeof(type)));
+    HNS_BATCH_FIELDS(HNS_VISIT_FIELD)
+#undef HNS_VISIT_FIELD
+  }
+};
+
+// Statistics of one finished episode (SPEC §7), reported by the step that ended it.
+struct EpisodeStats {
+  int env = 0;
+  int episode = 0;
+  int length = 0;          // env steps
+  bool discarded = false;  // ended early by numerical trouble
+  float hider_return = 0;  // summed mean hider reward
+  float seeker_return = 0;
+  float max_box_move_prep = 0;  // m, at the end of the preparation phase
+  float num_box_lock_prep = 0;
+  float max_ramp_move_prep = 0;
+  float num_ramp_lock_prep = 0;
+  float max_box_move = 0;  // m, at the end of the episode
+  float num_box_lock = 0;
+  float max_ramp_move = 0;
+  float num_ramp_lock = 0;
+};
+
+// Seconds of thread time spent per phase since the last reset_timers(), summed over envs.
+struct PhaseTimes {
+  double physics = 0;       // World::step (grab, lock, substeps)
+  double perception = 0;    // mirror, shapes, vision, lidar
+  double observations = 0;  // observation tensors
+  double rewards = 0;       // rewards, statistics, auto-resets
+};
+
+class BatchSim {
+ public:
+  explicit BatchSim(const BatchConfig& config);
+  ~BatchSim();
+  BatchSim(const BatchSim&) = delete;
+  BatchSim& operator=(const BatchSim&) = delete;
+
+  // Starts episode 0 of every env.
+  void reset();
+  // Restarts env `env` on a given scene (tests, replays); the env's episode counter is kept.
+  void load_scene(int env, const physics::Scene& scene);
+  // One env step of every env, in parallel. actions: num_envs x max_agents (padding slots ignored).
+  void step(std::span<const AgentAction> actions);
+  // The same work for envs [begin, end), on the calling thread.
+  void step_range(std::span<const AgentAction> actions, int begin, int end);
+
+  const BatchConfig& config() const { return config_; }
+  const Layout& layout() const { return layout_; }
+  int num_envs() const { return config_.num_envs; }
+  const BatchState& state() const { return state_; }
+  // Episodes that ended in the last step(), in env order.
+  std::span<const EpisodeStats> finished() const { return finished_; }
+  // Episodes reset after numerical trouble since construction.
+  int64_t unstable_resets() const;
+  const PhaseTimes& phase_times() const { return phase_times_; }
+  void reset_timers() { phase_times_ = {}; }
+  // Env e's occluders as the ray kernel sees them (walls, boxes, ramps, agents).
+  ShapesView shapes(int env) const;
+  // The underlying world of env e (read-only; tests and tools).
+  const physics::World& world(int env) const { return *worlds_[env]; }
+
+ private:
+  struct EnvScratch;
+  void reset_env(int env, uint64_t episode);
+  void start_episode_env(int env, uint64_t episode);  // after the world was reset: mirror, shapes, stats
+  void refresh_env(int env);                          // mirror, shapes, vision, lidar
+  void mirror_env(int env);
+  void build_shapes(int env);
+  void perceive_env(int env);
+  void rewards_env(int env);
+  void observe_env(int env);
+  void end_episode_env(int env, bool discarded);
+  // Max box move (m), boxes locked, max ramp move (m), ramps locked, from the mirror (SPEC §7).
+  void measure_env(int env, float out[4]) const;
+  void collect_finished();
+
+  BatchConfig config_;
+  Layout layout_;
+  BatchState state_;
+  std::vector<std::unique_ptr<physics::World>> worlds_;
+  std::vector<EnvScratch> scratch_;  // per env: finished-episode record, timers, counters
+  std::vector<EpisodeStats> finished_;
+  PhaseTimes phase_times_;
+};
+
+}  // namespace hns::batch

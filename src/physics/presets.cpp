@@ -1,0 +1,26 @@
+#include "physics/presets.hpp"
+
+#include <algorithm>
+
+namespace hns::physics {
+
+WorldConfig world_preset(const std::string& name) {
+  if (name == "quadrant") return WorldConfig::quadrant();
+  if (name == "full") return WorldConfig::full();
+  if (name == "empty") return WorldConfig::empty();
+  throw ConfigError("scene = '" + name + "' is invalid: must be one of quadrant, full, empty");
+}
+
+void apply_overrides(WorldConfig& config, const CountOverrides& counts) {
+  SceneConfig& s = config.scene;
+  if (counts.hiders) s.hiders = {*counts.hiders, *counts.hiders};
+  if (counts.seekers) s.seekers = {*counts.seekers, *counts.seekers};
+  if (counts.ramps) s.ramps = {*counts.ramps, *counts.ramps};
+  if (counts.boxes) {
+    s.boxes = {*counts.boxes, *counts.boxes};
+    s.elongated.max = std::min(s.elongated.max, *counts.boxes);
+    s.elongated.min = std::min(s.elongated.min, s.elongated.max);
+  }
+}
+
+}  // namespace hns::physics

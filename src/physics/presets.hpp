@@ -1,0 +1,23 @@
+// Named world presets and per-run count overrides shared by the CLI and the benchmarks.
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include "physics/world.hpp"
+
+namespace hns::physics {
+
+// "quadrant" (SPEC §14.5 quadrant game), "full" (the paper's full game on random rooms), "empty".
+// Throws ConfigError naming the allowed names.
+WorldConfig world_preset(const std::string& name);
+
+// Fixed counts that replace what the scene would draw per episode (unset = keep the preset's range).
+struct CountOverrides {
+  std::optional<int> hiders, seekers, boxes, ramps;
+};
+
+// Applies the overrides; with a fixed box count the elongated range is clamped into it.
+void apply_overrides(WorldConfig& config, const CountOverrides& counts);
+
+}  // namespace hns::physics

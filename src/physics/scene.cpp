@@ -1,0 +1,683 @@
+// Scene generation (SPEC.md §1.3, §2.3-§2.6, §14.5).
+//
+// One attempt: draw the counts -> build the walls and doors on the 30 x 30 grid (quadrant, random rooms or
+// the bare arena) -> mark the wall cells -> turn the wall pieces into physical boxes -> rejection-place
+// agents (hiders, then seekers), boxes and ramps. A failed placement, or random walls that cannot be split
+// into the drawn room count, throws the attempt away and rebuilds the whole scene from the same, advanced
+// stream.
+#include "physics/scene.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <sstream>
+
+namespace hns::physics {
+namespace {
+
+constexpr int kQuadrantSize = 15;  // q_size = int(0.5 * grid size): the room's wall row and column
+constexpr int kMinRoomSize = 6;  // random walls: attachment points on one side of a wall are > 6 cells apart
+constexpr int kSplitTries = 10;  // random walls: attempts per new interior wall (choose_new_split)
+constexpr int kRoomFailures = 10;  // random walls: restarts from the outer walls before the scene is rebuilt
+
+// Caps that validate() enforces; the fixed-size scratch below relies on them.
+constexpr int kMaxAgents = 32;
+constexpr int kMaxBoxes = 32;
+constexpr int kMaxRamps = 16;
+constexpr int kMaxRooms = 8;
+constexpr int kMaxDoorSize = 10;
+constexpr int kMaxRoomWalls = kMaxRooms + 3;            // 4 outer walls + rooms - 1 interior walls
+constexpr int kMaxEdges = 2 + 2 * (kMaxRoomWalls - 1);  // per side: own endpoints + 2 per other wall
+
+// Cells an object of `size` m covers along one axis: ceil(size / 0.2), robust to 0.3 / 0.2 = 1.4999...
+int footprint_cells(double size) {
+  return static_cast<int>(std::ceil(size / kCellSize - 1e-9));
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Occupancy grid, indexed [x][y]. Cells outside the grid count as occupied.
+class Grid {
+ public:
+  void clear() { cells_.fill(0); }
+  bool free(int i, int j, int cx, int cy) const {
+    if (i < 0 || j < 0 || i + cx > kGridSize || j + cy > kGridSize) return false;
+    for (int x = i; x < i + cx; ++x) {
+      for (int y = j; y < j + cy; ++y) {
+        if (cells_[x * kGridSize + y]) return false;
+      }
+    }
+    return true;
+  }
+  void mark(int i, int j, int cx, int cy) {
+    for (int x = i; x < i + cx; ++x) {
+      for (int y = j; y < j + cy; ++y) cells_[x * kGridSize + y] = 1;
+    }
+  }
+  // Every cell of the wall from p1 to p2 inclusive.
+  void mark_wall(const WallCells& w) {
+    mark(std::min(w.x1, w.x2), std::min(w.y1, w.y2), std::abs(w.x2 - w.x1) + 1, std::abs(w.y2 - w.y1) + 1);
+  }
+
+ private:
+  std::array<uint8_t, size_t{kGridSize} * kGridSize> cells_{};
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+// Walls → physical boxes (SPEC §1.3): from the centre of p1 to the centre of p2, shortened by half the wall
+// thickness at each end, centred on the cell-centre line. Pieces of one cell have no physical length.
+void add_wall_box(const WallCells& w, std::vector<StaticBox>& boxes) {
+  const int cells_x = std::abs(w.x2 - w.x1), cells_y = std::abs(w.y2 - w.y1);
+  const double length = (cells_x + cells_y) * kCellSize - kWallThickness;
+  if (length <= 1e-9) return;
+  const double height = w.outer ? kOuterWallHeight : kInteriorWallHeight;
+  const double half_thick = 0.5 * kWallThickness;
+  StaticBox b;
+  b.cx = 0.5 * (w.x1 + w.x2 + 1) * kCellSize;
+  b.cy = 0.5 * (w.y1 + w.y2 + 1) * kCellSize;
+  b.cz = 0.5 * height;
+  b.hx = cells_x > 0 ? 0.5 * length : half_thick;
+  b.hy = cells_y > 0 ? 0.5 * length : half_thick;
+  b.hz = 0.5 * height;
+  boxes.push_back(b);
+}
+
+// The four outer walls, corner cells shared.
+constexpr std::array<WallCells, 4> kOuterWalls = {{
+    {0, 0, 0, kGridSize - 1, true},
+    {0, 0, kGridSize - 1, 0, true},
+    {kGridSize - 1, 0, kGridSize - 1, kGridSize - 1, true},
+    {0, kGridSize - 1, kGridSize - 1, kGridSize - 1, true},
+}};
+
+// Cuts a door of `door` cells into wall w (p1 <= p2), `offset` cells from p1, and appends the two remaining
+// pieces [p1, offset - 1] and [offset + door, p2] and the door.
+void split_for_door(const WallCells& w, int offset, int door, std::vector<WallCells>& pieces,
+                    std::vector<DoorCells>& doors) {
+  const int dx = w.x2 > w.x1 ? 1 : 0, dy = w.y2 > w.y1 ? 1 : 0;
+  const int first = offset, last = offset + door - 1;  // door cells, measured from p1
+  pieces.push_back({w.x1, w.y1, w.x1 + dx * (first - 1), w.y1 + dy * (first - 1), w.outer});
+  pieces.push_back({w.x1 + dx * (last + 1), w.y1 + dy * (last + 1), w.x2, w.y2, w.outer});
+  doors.push_back({w.x1 + dx * first, w.y1 + dy * first, w.x1 + dx * last, w.y1 + dy * last});
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Random rooms (SPEC §2.4).
+struct Point {
+  int x, y;
+};
+
+// A wall of the random-rooms builder, p1 <= p2. edges[0] holds the points where perpendicular walls leave it
+// toward lower coordinates (below / left), edges[1] toward higher ones; both start with the wall's endpoints.
+struct RoomWall {
+  Point p1, p2;
+  bool vertical;
+  int length;  // cells from p1 to p2
+  std::array<std::array<Point, kMaxEdges>, 2> edges;
+  std::array<int, 2> num_edges;
+
+  static RoomWall make(Point a, Point b) {
+    RoomWall w;
+    const bool swap = b.x < a.x || b.y < a.y;
+    w.p1 = swap ? b : a;
+    w.p2 = swap ? a : b;
+    w.vertical = w.p1.x == w.p2.x;
+    w.length = (w.p2.x - w.p1.x) + (w.p2.y - w.p1.y);
+    for (int side = 0; side < 2; ++side) {
+      w.edges[side][0] = w.p1;
+      w.edges[side][1] = w.p2;
+      w.num_edges[side] = 2;
+    }
+    return w;
+  }
+  int across() const { return vertical ? p1.x : p1.y; }
+  int along(Point p) const { return vertical ? p.y : p.x; }
+  // The point lies on the wall, endpoints included.
+  bool touches(Point p) const {
+    return vertical ? p.x == p1.x && p.y >= p1.y && p.y <= p2.y : p.y == p1.y && p.x >= p1.x && p.x <= p2.x;
+  }
+  // Strict crossing of two perpendicular walls: touching at an endpoint is allowed.
+  bool crosses(const RoomWall& o) const {
+    if (vertical == o.vertical) return false;
+    const RoomWall& v = vertical ? *this : o;
+    const RoomWall& h = vertical ? o : *this;
+    return h.p1.x < v.p1.x && v.p1.x < h.p2.x && v.p1.y < h.p1.y && h.p1.y < v.p2.y;
+  }
+  void add_edge(int side, Point p) {
+    if (num_edges[side] < kMaxEdges) edges[side][num_edges[side]++] = p;
+  }
+  // Records where perpendicular wall w meets this wall: w leaves toward higher coordinates from its p1.
+  void record_attachment(const RoomWall& w) {
+    if (w.vertical == vertical) return;
+    if (touches(w.p1)) {
+      add_edge(1, w.p1);
+    } else if (touches(w.p2)) {
+      add_edge(0, w.p2);
+    }
+  }
+};
+
+class RoomBuilder {
+ public:
+  // Builds rooms - 1 interior walls; false after kRoomFailures restarts.
+  bool build(int rooms, Rng& rng) {
+    reset();
+    int failures = 0;
+    while (num_walls_ < rooms + 3) {
+      if (!add_split(rng)) {
+        reset();
+        if (++failures >= kRoomFailures) return false;
+      }
+    }
+    return true;
+  }
+
+  // Appends the wall pieces (outer walls first, then interior walls split at their doors) and the doors.
+  // Each interior wall gets at most one door, inside a stretch of >= door + 1 cells between attachment
+  // points.
+  void emit(int door, Rng& rng, std::vector<WallCells>& pieces, std::vector<DoorCells>& doors) const {
+    pieces.insert(pieces.end(), kOuterWalls.begin(), kOuterWalls.end());
+    for (int k = 4; k < num_walls_; ++k) {
+      const RoomWall& w = walls_[k];
+      const WallCells cells{w.p1.x, w.p1.y, w.p2.x, w.p2.y, false};
+      // Attachment points along the wall, sorted and unique.
+      std::array<int, size_t{2} * kMaxEdges> at;
+      int n = 0;
+      for (int side = 0; side < 2; ++side) {
+        for (int e = 0; e < w.num_edges[side]; ++e) at[n++] = w.along(w.edges[side][e]);
+      }
+      std::sort(at.begin(), at.begin() + n);
+      n = static_cast<int>(std::unique(at.begin(), at.begin() + n) - at.begin());
+      std::array<int, size_t{2} * kMaxEdges> stretches;  // index of the stretch's first attachment point
+      int num_stretches = 0;
+      for (int e = 0; e + 1 < n; ++e) {
+        if (at[e + 1] - at[e] >= door + 1) stretches[num_stretches++] = e;
+      }
+      if (num_stretches == 0) {
+        pieces.push_back(cells);
+        continue;
+      }
+      const int e = stretches[rng.uniform_int(0, num_stretches)];
+      const int start = rng.uniform_int(1, at[e + 1] - at[e] - door + 1);
+      split_for_door(cells, at[e] - w.along(w.p1) + start, door, pieces, doors);
+    }
+  }
+
+ private:
+  void reset() {
+    num_walls_ = 0;
+    for (const WallCells& o : kOuterWalls) walls_[num_walls_++] = RoomWall::make({o.x1, o.y1}, {o.x2, o.y2});
+  }
+
+  // choose_new_split: up to kSplitTries random source walls; from each, one perpendicular proposal toward
+  // every other parallel wall; one surviving proposal is kept.
+  bool add_split(Rng& rng) {
+    std::array<RoomWall, kMaxRoomWalls> proposals;
+    for (int attempt = 0; attempt < kSplitTries; ++attempt) {
+      const RoomWall& w1 = walls_[rng.uniform_int(0, num_walls_)];
+      int num_proposals = 0;
+      for (int k = 0; k < num_walls_; ++k) {
+        const RoomWall& w2 = walls_[k];
+        if (&w2 == &w1 || w2.vertical != w1.vertical) continue;
+        RoomWall candidate;
+        if (propose(w1, w2, rng, candidate) && !crosses_any(candidate))
+          proposals[num_proposals++] = candidate;
+      }
+      if (num_proposals > 0) {
+        add_wall(proposals[rng.uniform_int(0, num_proposals)]);
+        return true;
+      }
+    }
+    return false;
+  }
+
+  // connect_walls: a perpendicular wall from a random interior point of w1 to w2's line. Valid if it ends on
+  // w2 and its start is more than kMinRoomSize cells from every attachment point on that side of w1.
+  static bool propose(const RoomWall& w1, const RoomWall& w2, Rng& rng, RoomWall& out) {
+    if (w1.length < 2) return false;
+    const int offset = rng.uniform_int(1, w1.length);
+    const Point start = w1.vertical ? Point{w1.p1.x, w1.p1.y + offset} : Point{w1.p1.x + offset, w1.p1.y};
+    const Point end = w1.vertical ? Point{w2.p1.x, start.y} : Point{start.x, w2.p1.y};
+    if (w2.across() == w1.across() || !w2.touches(end)) return false;
+    const int side = w2.across() > w1.across() ? 1 : 0;
+    for (int e = 0; e < w1.num_edges[side]; ++e) {
+      const int dx = start.x - w1.edges[side][e].x, dy = start.y - w1.edges[side][e].y;
+      if (dx * dx + dy * dy <= kMinRoomSize * kMinRoomSize) return false;  // Euclidean distance <= 6
+    }
+    out = RoomWall::make(start, end);
+    return true;
+  }
+
+  bool crosses_any(const RoomWall& w) const {
+    for (int k = 0; k < num_walls_; ++k) {
+      if (w.crosses(walls_[k])) return true;
+    }
+    return false;
+  }
+
+  void add_wall(RoomWall w) {
+    for (int k = 0; k < num_walls_; ++k) {
+      walls_[k].record_attachment(w);
+      w.record_attachment(walls_[k]);
+    }
+    walls_[num_walls_++] = w;
+  }
+
+  std::array<RoomWall, kMaxRoomWalls> walls_;
+  int num_walls_ = 0;
+};
+
+// ---------------------------------------------------------------------------------------------------------------
+// Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
+enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo };
+
+struct Cell {
+  int i = 0, j = 0;
+};
+
+Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, Rng& rng) {
+  constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
+  switch (p) {
+    case Placement::kQuadrant: {
+      const int i = rng.uniform_int(kG - kQ, kG - cx - 1);
+      return {i, rng.uniform_int(1, kQ - cy - 1)};
+    }
+    case Placement::kOutsideQuadrant: {
+      const int region = rng.uniform_int(0, 3);
+      const int i = region < 2 ? rng.uniform_int(1, kQ - cx - 1) : rng.uniform_int(kQ, kG - cx - 1);
+      const int j = region == 0 ? rng.uniform_int(1, kQ - cy - 1) : rng.uniform_int(kQ, kG - cy - 1);
+      return {i, j};
+    }
+    case Placement::kCloseTo: {
+      const int r = radius_cells;
+      const int i = rng.uniform_int(std::max(1, anchor.i - r), std::min(kG - 1, anchor.i + r));
+      return {i, rng.uniform_int(std::max(1, anchor.j - r), std::min(kG - 1, anchor.j + r))};
+    }
+    case Placement::kUniform:
+    default: {
+      const int i = rng.uniform_int(1, kG - cx - 1);
+      return {i, rng.uniform_int(1, kG - cy - 1)};
+    }
+  }
+}
+
+// What one object needs from the rejection placement.
+struct Request {
+  Placement placement = Placement::kUniform;
+  double sx = 0, sy = 0, sz = 0;  // full extents, m
+  double z = 0;                   // spawn height of the centre, m
+  Cell anchor;                    // kCloseTo: the anchor's spawn cell
+  int radius_cells = 0;           // kCloseTo: r = ceil(radius / 0.2)
+};
+
+// rejection_placement: up to `tries` proposals; the first whose cells are all free is jittered inside its
+// cells, marked and returned.
+bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Cell& cell) {
+  const int cx = footprint_cells(req.sx), cy = footprint_cells(req.sy);
+  for (int t = 0; t < tries; ++t) {
+    const Cell c = propose_cell(req.placement, cx, cy, req.anchor, req.radius_cells, rng);
+    if (!grid.free(c.i, c.j, cx, cy)) continue;
+    const double corner_x = c.i * kCellSize + rng.uniform(0.0, cx * kCellSize - req.sx);
+    const double corner_y = c.j * kCellSize + rng.uniform(0.0, cy * kCellSize - req.sy);
+    spawn = Spawn{corner_x + 0.5 * req.sx, corner_y + 0.5 * req.sy, req.z, req.sx, req.sy, req.sz};
+    grid.mark(c.i, c.j, cx, cy);
+    cell = c;
+    return true;
+  }
+  return false;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Why the last attempt failed, for the final error message.
+struct Failure {
+  const char* object = "";  // "hider", "seeker", "box", "ramp" or "rooms"
+  int index = 0;
+  const char* kind = "";  // agent, box kind or ramp
+  int cx = 0, cy = 0;
+  Placement placement = Placement::kUniform;
+  int rooms = 0;
+};
+
+const char* placement_region(Placement p) {
+  switch (p) {
+    case Placement::kQuadrant:
+      return "inside the quadrant room";
+    case Placement::kOutsideQuadrant:
+      return "outside the quadrant room";
+    case Placement::kCloseTo:
+      return "near its team's first agent";
+    case Placement::kUniform:
+    default:
+      return "anywhere in the arena";
+  }
+}
+
+struct Counts {
+  int hiders = 0, seekers = 0, boxes = 0, elongated = 0, x_aligned = 0, ramps = 0;
+};
+
+int draw(const IntRange& r, Rng& rng) {
+  return rng.uniform_int(r.min, r.max + 1);
+}
+
+// One attempt at a full scene; false (with `fail` filled) if anything could not be built or placed.
+bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Failure& fail) {
+  // Counts (SPEC §2.6). With fewer boxes than elongated.min, every box is elongated.
+  n.hiders = draw(config.hiders, rng);
+  n.seekers = draw(config.seekers, rng);
+  n.boxes = draw(config.boxes, rng);
+  const int elongated_hi = std::min(config.elongated.max, n.boxes);
+  n.elongated = rng.uniform_int(std::min(config.elongated.min, elongated_hi), elongated_hi + 1);
+  n.x_aligned = rng.uniform_int(0, n.elongated + 1);
+  n.ramps = draw(config.ramps, rng);
+
+  out.layout = config.layout;
+  out.outer_walls = true;
+  out.walls.clear();
+  out.wall_boxes.clear();
+  out.doors.clear();
+  out.agents.clear();
+  out.boxes.clear();
+  out.ramps.clear();
+  out.num_hiders = n.hiders;
+  out.num_seekers = n.seekers;
+  out.num_elongated = n.elongated;
+
+  // Walls and doors. out.walls receives every piece first; dropped outer walls are removed after marking.
+  const int door = config.door_size;
+  switch (config.layout) {
+    case Layout::kEmpty:
+      out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
+      break;
+    case Layout::kQuadrant: {
+      // SPEC §2.3: a vertical and a horizontal room wall; with p_door_dropout one of them has no door.
+      out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
+      const std::array<WallCells, 2> room = {{
+          {kQuadrantSize, 0, kQuadrantSize, kQuadrantSize, false},
+          {kQuadrantSize, kQuadrantSize, kGridSize - 1, kQuadrantSize, false},
+      }};
+      const int no_door = rng.bernoulli(config.p_door_dropout) ? rng.uniform_int(0, 2) : -1;
+      for (int k = 0; k < 2; ++k) {
+        if (k == no_door) {
+          out.walls.push_back(room[k]);
+          continue;
+        }
+        const int length = (room[k].x2 - room[k].x1) + (room[k].y2 - room[k].y1);
+        split_for_door(room[k], rng.uniform_int(1, length - door + 1), door, out.walls, out.doors);
+      }
+      break;
+    }
+    case Layout::kRandomWalls: {
+      RoomBuilder builder;
+      const int rooms = draw(config.rooms, rng);
+      if (!builder.build(rooms, rng)) {
+        fail = Failure{"rooms", 0, "", 0, 0, Placement::kUniform, rooms};
+        return false;
+      }
+      builder.emit(door, rng, out.walls, out.doors);
+      out.outer_walls = rng.bernoulli(config.prob_outside_walls);
+      break;
+    }
+  }
+
+  // Occupancy: every cell of every piece, outer walls included even when they are dropped physically.
+  Grid grid;
+  grid.clear();
+  for (const WallCells& w : out.walls) grid.mark_wall(w);
+  if (!out.outer_walls) {
+    out.walls.erase(
+        std::remove_if(out.walls.begin(), out.walls.end(), [](const WallCells& w) { return w.outer; }),
+        out.walls.end());
+  }
+  for (const WallCells& w : out.walls) add_wall_box(w, out.wall_boxes);
+
+  const int tries = config.max_tries_per_object;
+  const bool quadrant = config.layout == Layout::kQuadrant;
+  const int together_cells =
+      std::min(kGridSize, static_cast<int>(std::ceil(config.together_radius / kCellSize - 1e-9)));
+  Spawn spawn;
+  Cell cell, first_of_team;
+
+  // Agents (SPEC §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
+  for (int a = 0; a < n.hiders + n.seekers; ++a) {
+    const bool hider = a < n.hiders;
+    const int in_team = hider ? a : a - n.hiders;
+    Request req;
+    req.sx = req.sy = req.sz = 2.0 * kAgentRadius;
+    req.z = kAgentRadius;
+    if (in_team > 0 && config.together_radius > 0) {
+      req.placement = Placement::kCloseTo;
+      req.anchor = first_of_team;
+      req.radius_cells = together_cells;
+    } else if (quadrant) {
+      req.placement = hider ? (config.hider_uniform_placement ? Placement::kUniform : Placement::kQuadrant)
+                            : Placement::kOutsideQuadrant;
+    }
+    if (!place(req, tries, grid, rng, spawn, cell)) {
+      const int c = footprint_cells(req.sx);
+      fail = Failure{hider ? "hider" : "seeker", in_team, "agent", c, c, req.placement, 0};
+      return false;
+    }
+    if (in_team == 0) first_of_team = cell;
+    out.agents.push_back(spawn);
+  }
+
+  // Boxes (SPEC §2.6): x-elongated, y-elongated, then cubes; inside the room in the quadrant game.
+  for (int b = 0; b < n.boxes; ++b) {
+    Request req;
+    req.placement = quadrant ? Placement::kQuadrant : Placement::kUniform;
+    const char* kind = "cube";
+    if (b < n.x_aligned) {
+      req.sx = kElongatedLong, req.sy = kElongatedShort, kind = "x-elongated";
+    } else if (b < n.elongated) {
+      req.sx = kElongatedShort, req.sy = kElongatedLong, kind = "y-elongated";
+    } else {
+      req.sx = req.sy = kBoxSize;
+    }
+    req.sz = kBoxSize;
+    req.z = 0.5 * kBoxSize;
+    if (!place(req, tries, grid, rng, spawn, cell)) {
+      fail = Failure{"box", b, kind, footprint_cells(req.sx), footprint_cells(req.sy), req.placement, 0};
+      return false;
+    }
+    out.boxes.push_back(spawn);
+  }
+
+  // Ramps: uniform.
+  for (int r = 0; r < n.ramps; ++r) {
+    Request req;
+    req.sx = req.sy = req.sz = kRampSize;
+    req.z = 0.5 * kRampSize;
+    if (!place(req, tries, grid, rng, spawn, cell)) {
+      const int c = footprint_cells(kRampSize);
+      fail = Failure{"ramp", r, "ramp", c, c, req.placement, 0};
+      return false;
+    }
+    out.ramps.push_back(spawn);
+  }
+  return true;
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+// Validation helpers: "field = value is invalid: allowed".
+template <typename T>
+[[noreturn]] void reject(const std::string& field, T value, const std::string& allowed) {
+  std::ostringstream out;
+  out << field << " = " << value << " is invalid: " << allowed;
+  throw ConfigError(out.str());
+}
+
+void check_range(const char* name, const IntRange& r) {
+  if (r.min < 0) reject(std::string(name) + ".min", r.min, "must be >= 0");
+  if (r.max < r.min) {
+    reject(std::string(name) + ".max", r.max,
+           "must be >= " + std::string(name) + ".min (" + std::to_string(r.min) + ")");
+  }
+}
+
+void check_probability(const char* name, double p) {
+  if (!(p >= 0.0 && p <= 1.0)) reject(name, p, "must be a probability in [0, 1]");
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------------------------
+Layout parse_layout(const std::string& name) {
+  if (name == "empty") return Layout::kEmpty;
+  if (name == "quadrant") return Layout::kQuadrant;
+  if (name == "randomwalls") return Layout::kRandomWalls;
+  throw ConfigError("layout = '" + name + "' is invalid: must be one of empty, quadrant, randomwalls");
+}
+
+const char* layout_name(Layout layout) {
+  switch (layout) {
+    case Layout::kEmpty:
+      return "empty";
+    case Layout::kQuadrant:
+      return "quadrant";
+    case Layout::kRandomWalls:
+      return "randomwalls";
+  }
+  return "unknown";
+}
+
+// hide_and_seek_quadrant.jsonnet (SPEC §2.1): 2 v 2, 2 cubes, 1 ramp, a room with one or two doors.
+SceneConfig SceneConfig::quadrant() {
+  SceneConfig c;
+  c.layout = Layout::kQuadrant;
+  c.hiders = {2, 2};
+  c.seekers = {2, 2};
+  c.boxes = {2, 2};
+  c.elongated = {0, 0};
+  c.ramps = {1, 1};
+  c.p_door_dropout = 0.5;
+  c.hider_uniform_placement = true;
+  c.together_radius = 0.0;
+  return c;
+}
+
+// The paper's full game (SPEC §14.5): 1-3 v 1-3, 3-9 boxes of which at least 3 elongated, 2 ramps, 1-4 random
+// rooms, outer walls kept half of the time, team mates spawn within 0.5 m (3 cells) of their first member.
+SceneConfig SceneConfig::full() {
+  SceneConfig c;
+  c.layout = Layout::kRandomWalls;
+  c.hiders = {1, 3};
+  c.seekers = {1, 3};
+  c.boxes = {3, 9};
+  c.elongated = {3, 9};
+  c.ramps = {2, 2};
+  c.rooms = {1, 4};
+  c.prob_outside_walls = 0.5;
+  c.together_radius = 0.5;
+  return c;
+}
+
+// The bare arena: outer walls only, quadrant counts, everything placed uniformly.
+SceneConfig SceneConfig::empty() {
+  SceneConfig c = quadrant();
+  c.layout = Layout::kEmpty;
+  return c;
+}
+
+void SceneConfig::validate() const {
+  if (layout != Layout::kEmpty && layout != Layout::kQuadrant && layout != Layout::kRandomWalls) {
+    reject("layout", static_cast<int>(layout), "must be one of empty, quadrant, randomwalls");
+  }
+  check_range("hiders", hiders);
+  check_range("seekers", seekers);
+  check_range("boxes", boxes);
+  check_range("elongated", elongated);
+  check_range("ramps", ramps);
+  // Sums in 64 bits: the fields may hold anything a user typed.
+  const int64_t min_agents = int64_t{hiders.min} + seekers.min,
+                max_agents = int64_t{hiders.max} + seekers.max;
+  if (min_agents < 1) reject("hiders.min + seekers.min", min_agents, "at least one agent is required");
+  if (max_agents > kMaxAgents) {
+    reject("hiders.max + seekers.max", max_agents, "must be <= " + std::to_string(kMaxAgents));
+  }
+  if (boxes.max > kMaxBoxes) reject("boxes.max", boxes.max, "must be <= " + std::to_string(kMaxBoxes));
+  if (ramps.max > kMaxRamps) reject("ramps.max", ramps.max, "must be <= " + std::to_string(kMaxRamps));
+  if (elongated.min > boxes.max) {
+    reject("elongated.min", elongated.min, "must be <= boxes.max (" + std::to_string(boxes.max) + ")");
+  }
+  if (layout == Layout::kRandomWalls) {
+    if (rooms.min < 1) reject("rooms.min", rooms.min, "must be >= 1");
+    if (rooms.max < rooms.min) {
+      reject("rooms.max", rooms.max, "must be >= rooms.min (" + std::to_string(rooms.min) + ")");
+    }
+    if (rooms.max > kMaxRooms) reject("rooms.max", rooms.max, "must be <= " + std::to_string(kMaxRooms));
+  }
+  if (door_size < 1 || door_size > kMaxDoorSize) {
+    reject("door_size", door_size, "must be in [1, " + std::to_string(kMaxDoorSize) + "] cells");
+  }
+  check_probability("prob_outside_walls", prob_outside_walls);
+  check_probability("p_door_dropout", p_door_dropout);
+  if (!(together_radius >= 0.0 && std::isfinite(together_radius))) {
+    reject("together_radius", together_radius, "must be finite and >= 0 m");
+  }
+  if (max_tries_per_object < 1) reject("max_tries_per_object", max_tries_per_object, "must be >= 1");
+  if (max_regenerations < 1) reject("max_regenerations", max_regenerations, "must be >= 1");
+
+  // Area: objects never share a grid cell, so counts whose footprints exceed the free cells of the region
+  // they are placed in can never be produced. Every box and ramp covers 9 cells, every agent 4.
+  const int agent_cells = footprint_cells(2 * kAgentRadius) * footprint_cells(2 * kAgentRadius);
+  const int box_cells = footprint_cells(kBoxSize) * footprint_cells(kBoxSize);
+  const int ramp_cells = footprint_cells(kRampSize) * footprint_cells(kRampSize);
+  if (layout == Layout::kQuadrant) {
+    // quadrant_placement covers columns 15..27 and rows 1..12; column 15 is room wall except its door cells.
+    const int room_free = (kGridSize - 3 - kQuadrantSize) * (kQuadrantSize - 3) + std::min(door_size, 12);
+    const int hiders_in_room = hider_uniform_placement ? 0 : hiders.max;
+    const int room_need = box_cells * boxes.max + agent_cells * hiders_in_room;
+    if (room_need > room_free) {
+      std::ostringstream why;
+      why << "too many for the quadrant room (" << room_free << " free cells): ";
+      if (box_cells * boxes.max <= room_free) {
+        why << "next to " << boxes.max << " boxes at most "
+            << (room_free - box_cells * boxes.max) / agent_cells << " hiders of " << agent_cells
+            << " cells fit inside it (or set hider_uniform_placement)";
+        reject("hiders.max", hiders.max, why.str());
+      }
+      why << "at most " << room_free / box_cells << " boxes of " << box_cells << " cells fit inside it";
+      reject("boxes.max", boxes.max, why.str());
+    }
+  }
+  // Every placement function keeps objects within cells 1..28 on both axes (28 x 28 cells).
+  const int arena_free = (kGridSize - 2) * (kGridSize - 2);
+  const int arena_need =
+      agent_cells * (hiders.max + seekers.max) + box_cells * boxes.max + ramp_cells * ramps.max;
+  if (arena_need > arena_free) {
+    reject("hiders.max + seekers.max + boxes.max + ramps.max",
+           hiders.max + seekers.max + boxes.max + ramps.max,
+           "the objects need " + std::to_string(arena_need) + " grid cells but the arena has " +
+               std::to_string(arena_free));
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------------
+void generate_scene(const SceneConfig& config, Rng& rng, Scene& out) {
+  config.validate();
+  Counts counts;
+  Failure fail;
+  for (int attempt = 0; attempt <= config.max_regenerations; ++attempt) {
+    if (try_generate(config, rng, out, counts, fail)) {
+      out.regenerations = attempt;
+      return;
+    }
+  }
+  std::ostringstream msg;
+  msg << "scene generation failed after " << config.max_regenerations << " rebuilds (layout "
+      << layout_name(config.layout) << "); the last attempt had " << counts.hiders << " hiders, "
+      << counts.seekers << " seekers, " << counts.boxes << " boxes (" << counts.elongated << " elongated), "
+      << counts.ramps << " ramps: ";
+  if (std::string(fail.object) == "rooms") {
+    msg << "the random walls could not be split into " << fail.rooms << " rooms in " << kRoomFailures
+        << " tries. Lower rooms.max.";
+  } else {
+    msg << fail.object << " " << fail.index << " (" << fail.kind << ", " << fail.cx << " x " << fail.cy
+        << " cells, " << placement_region(fail.placement) << ") found no free spot in "
+        << config.max_tries_per_object
+        << " tries. Lower the counts (hiders, seekers, boxes, ramps) or raise max_tries_per_object.";
+  }
+  throw std::runtime_error(msg.str());
+}
+
+}  // namespace hns::physics

@@ -1,0 +1,113 @@
+// Scene generation on the 30 x 30 placement grid (SPEC.md §1.3, §2.3-§2.6, §14.5). Pure grid logic, no ODE:
+// walls (in cells and as physical boxes), doors, and the spawn positions and sizes of agents, boxes and
+// ramps.
+#pragma once
+
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "physics/rng.hpp"
+
+namespace hns::physics {
+
+// Grid and arena constants (SPEC.md §1.1, §1.3).
+inline constexpr int kGridSize = 30;                // cells per side
+inline constexpr double kCellSize = 0.2;            // m
+inline constexpr double kFloorSize = 6.0;           // m, arena covers [0, 6]^2
+inline constexpr double kWallThickness = 0.1;       // m
+inline constexpr double kInteriorWallHeight = 0.5;  // m
+inline constexpr double kOuterWallHeight = 4.0;     // m
+inline constexpr double kAgentRadius = 0.15;        // m
+inline constexpr double kBoxSize = 0.5;             // m, cube edge and elongated box height
+inline constexpr double kElongatedLong = 1.65;      // m
+inline constexpr double kElongatedShort = 0.15;     // m
+inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
+
+// Wall layout of a scene.
+enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls };
+
+// Parses "empty", "quadrant", "randomwalls"; throws ConfigError otherwise.
+Layout parse_layout(const std::string& name);
+const char* layout_name(Layout layout);
+
+// Bad user configuration: the message names the field, the value and what is allowed.
+class ConfigError : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
+
+// Inclusive integer range [min, max], drawn uniformly per episode.
+struct IntRange {
+  int min = 0;
+  int max = 0;
+};
+
+// Everything that shapes one episode's scene. Presets: SceneConfig::quadrant(), SceneConfig::full().
+struct SceneConfig {
+  Layout layout = Layout::kQuadrant;
+  IntRange hiders{2, 2};     // agents of team 0, placed first
+  IntRange seekers{2, 2};    // agents of team 1
+  IntRange boxes{2, 2};      // all boxes, elongated included
+  IntRange elongated{0, 0};  // elongated boxes among them (drawn up to the drawn box count)
+  IntRange ramps{1, 1};
+  IntRange rooms{1, 4};                 // randomwalls: room count
+  double prob_outside_walls = 1.0;      // randomwalls: chance the outer walls are kept
+  double p_door_dropout = 0.5;          // quadrant: chance one room wall has no door
+  int door_size = 2;                    // cells
+  bool hider_uniform_placement = true;  // quadrant: hiders anywhere (else inside the room)
+  double together_radius = 0.0;         // m; > 0: agents after the first of a team spawn near it
+  int max_tries_per_object = 10;        // rejection placement tries per object (SPEC §2.5)
+  int max_regenerations = 1000;         // whole-scene rebuilds before giving up with an error
+
+  static SceneConfig quadrant();
+  static SceneConfig full();
+  static SceneConfig empty();
+  // Throws ConfigError naming the first bad field.
+  void validate() const;
+};
+
+// A wall between grid cells (x1, y1) and (x2, y2), inclusive, sharing x or y.
+struct WallCells {
+  int x1, y1, x2, y2;
+  bool outer;  // outer walls are 4 m high, interior ones 0.5 m
+};
+
+// A static axis-aligned box: centre and half extents in m.
+struct StaticBox {
+  double cx, cy, cz;
+  double hx, hy, hz;
+};
+
+// A door: its first and last cell (inclusive) on a wall.
+struct DoorCells {
+  int x1, y1, x2, y2;
+};
+
+// A movable body's spawn: centre (m) and full extents (m). Yaw is always 0 at spawn.
+struct Spawn {
+  double x, y, z;
+  double sx, sy, sz;
+};
+
+struct Scene {
+  Layout layout = Layout::kEmpty;
+  bool outer_walls = true;
+  std::vector<WallCells> walls;       // wall segments after door splitting
+  std::vector<StaticBox> wall_boxes;  // the same walls as physical boxes (SPEC §1.3)
+  std::vector<DoorCells> doors;
+  int num_hiders = 0;
+  int num_seekers = 0;
+  std::vector<Spawn> agents;  // hiders first, then seekers
+  std::vector<Spawn> boxes;   // x-elongated first, then y-elongated, then cubes (SPEC §2.6)
+  int num_elongated = 0;
+  std::vector<Spawn> ramps;
+  int regenerations = 0;  // whole-scene rebuilds this scene needed
+};
+
+// Generates one scene from the stream. Reuses `out`'s capacity. Throws std::runtime_error if no valid
+// scene was found within config.max_regenerations rebuilds (impossible configurations fail validate()).
+void generate_scene(const SceneConfig& config, Rng& rng, Scene& out);
+
+}  // namespace hns::physics

@@ -1,0 +1,706 @@
+#include "physics/world.hpp"
+
+#include <ode/ode.h>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+#include "physics/ode_runtime.hpp"
+
+namespace hns::physics {
+namespace {
+
+constexpr int kMaxContactsPerPair = 8;
+
+// Body constants (SPEC.md §1.2). Rotation about x and y is removed by a huge inertia on those axes plus a
+// projection back to pure yaw after every substep, which together act like the original's missing hinges.
+constexpr double kBodyMass = 1.0;                       // kg, agents, boxes and ramps alike
+constexpr double kLockedTiltInertia = 1e4;              // kg·m², x/y inertia of every movable body
+constexpr double kAgentYawInertia = 0.4 * 0.15 * 0.15;  // kg·m², solid sphere r = 0.15
+constexpr double kAgentDampXY = 10.0;                   // N·s/m (joint damping of tx, ty)
+constexpr double kAgentDampZ = 1.0;                     // N·s/m (tz, overridden to 1 in the original)
+constexpr double kAgentDampYaw = 10.0;                  // N·m·s (rz)
+constexpr double kBoxDamp = 0.01;                       // every box joint
+constexpr double kRampDamp = 0.1;                       // every ramp joint
+constexpr double kAgentFriction = 0.01;
+constexpr double kBoxFriction = 0.2;
+constexpr double kRampFriction = 0.01;
+constexpr double kFloorFriction = 0.2;
+constexpr double kQuadrantWallFriction = 0.01;
+constexpr double kRandomWallFriction = 1.0;  // RandomWalls passes no friction: MuJoCo's default
+// Ramp volume centroid in its bounding-box frame; the ODE body origin sits there.
+constexpr double kRampCentroidY = -1.0 / 12.0;
+constexpr double kRampCentroidZ = -1.0 / 12.0;
+// Wedge yaw inertia about its centroid: m·(a²/12 + Var_y(triangle)) with a = 0.5.
+constexpr double kRampYawInertia = 0.5 * 0.5 / 12.0 + 0.25 / 18.0;
+// Bodies outside these bounds (or non-finite) make the world unstable.
+constexpr double kSaneXY = 200.0, kSaneZ = 100.0, kSaneSpeed = 200.0;
+
+// The wedge as an ODE convex, relative to its centroid. Faces: bottom, back, slope, left cap, right cap.
+constexpr double kH = kRampHalf;
+const double kRampPoints[18] = {
+    -kH, -kH - kRampCentroidY, -kH - kRampCentroidZ, kH,  -kH - kRampCentroidY, -kH - kRampCentroidZ,
+    kH,  kH - kRampCentroidY,  -kH - kRampCentroidZ, -kH, kH - kRampCentroidY,  -kH - kRampCentroidZ,
+    -kH, -kH - kRampCentroidY, kH - kRampCentroidZ,  kH,  -kH - kRampCentroidY, kH - kRampCentroidZ,
+};
+const double kInvSqrt2 = 0.70710678118654752440;
+const double kRampPlanes[20] = {
+    0,  0,         -1,        kH + kRampCentroidZ,                             // bottom
+    0,  -1,        0,         kH + kRampCentroidY,                             // back
+    0,  kInvSqrt2, kInvSqrt2, -(kRampCentroidY + kRampCentroidZ) * kInvSqrt2,  // slope y + z <= 0
+    -1, 0,         0,         kH,                                              // left cap
+    1,  0,         0,         kH,                                              // right cap
+};
+unsigned int kRampPolygons[] = {4, 0, 3, 2, 1, 4, 0, 1, 5, 4, 4, 3, 4, 5, 2, 3, 0, 4, 3, 3, 1, 2, 5};
+
+// Friction of a geom, stored as its ODE user data.
+struct GeomInfo {
+  double friction;
+};
+
+double wrap_angle(double a) {
+  return std::remainder(a, 2.0 * M_PI);
+}
+
+void set_yaw(dBodyID body, double yaw) {
+  const dQuaternion q = {std::cos(0.5 * yaw), 0, 0, std::sin(0.5 * yaw)};
+  dBodySetQuaternion(body, q);
+}
+
+double body_yaw(dBodyID body) {
+  const dReal* q = dBodyGetQuaternion(body);
+  return wrap_angle(2.0 * std::atan2(q[3], q[0]));
+}
+
+std::string describe(const char* field, double value, const char* allowed) {
+  std::ostringstream out;
+  out << field << " = " << value << " is invalid: " << allowed;
+  return out.str();
+}
+
+}  // namespace
+
+struct World::Ode {
+  dWorldID world = nullptr;
+  dSpaceID dynamic_space = nullptr;  // agents, boxes, ramps
+  dSpaceID static_space = nullptr;   // floor and walls
+  dJointGroupID contacts = nullptr;
+  dThreadingImplementationID threading = nullptr;
+  std::vector<dBodyID> agents, boxes, ramps;
+  std::vector<dGeomID> agent_geoms, box_geoms, ramp_geoms, walls;
+  std::vector<dMass> box_mass;
+  std::vector<dJointID> grab;  // per agent, nullptr = none
+  GeomInfo agent_info{kAgentFriction}, box_info{kBoxFriction}, ramp_info{kRampFriction};
+  GeomInfo floor_info{kFloorFriction}, wall_info{kQuadrantWallFriction};
+
+  dBodyID object_body(int object) const {
+    return object < int(boxes.size()) ? boxes[object] : ramps[object - boxes.size()];
+  }
+};
+
+namespace {
+
+// ODE near callback: contacts between geoms with the pair friction max(μ1, μ2) (SPEC §1.2, Coulomb
+// pyramid scaled by the normal force).
+void near_callback(void* data, dGeomID g1, dGeomID g2) {
+  auto* ode = static_cast<World::Ode*>(data);
+  dBodyID b1 = dGeomGetBody(g1);
+  dBodyID b2 = dGeomGetBody(g2);
+  // Only a pair with an awake dynamic body can produce a contact; a sleeping body touched by an awake one is
+  // woken by ODE through the contact.
+  const bool awake1 = b1 != nullptr && dBodyIsEnabled(b1) && !dBodyIsKinematic(b1);
+  const bool awake2 = b2 != nullptr && dBodyIsEnabled(b2) && !dBodyIsKinematic(b2);
+  if (!awake1 && !awake2) return;
+  // A held object does not collide with its holder.
+  if (b1 != nullptr && b2 != nullptr && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
+  dContact contact[kMaxContactsPerPair];
+  const int n = dCollide(g1, g2, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
+  if (n == 0) return;
+  const double mu = std::max(static_cast<GeomInfo*>(dGeomGetData(g1))->friction,
+                             static_cast<GeomInfo*>(dGeomGetData(g2))->friction);
+  for (int i = 0; i < n; ++i) {
+    // ODE's convex-box collider returns a zero normal for exactly touching faces; such a contact would
+    // poison the whole world with NaN, so it is dropped (the next substep sees a proper overlap).
+    const dContactGeom& g = contact[i].geom;
+    const double normal_sq =
+        g.normal[0] * g.normal[0] + g.normal[1] * g.normal[1] + g.normal[2] * g.normal[2];
+    if (!(normal_sq > 0.5 && normal_sq < 1.5) || !std::isfinite(g.depth) ||
+        !std::isfinite(g.pos[0] + g.pos[1] + g.pos[2])) {
+      continue;
+    }
+    contact[i].surface.mode = dContactApprox1;
+    contact[i].surface.mu = mu;
+    dJointID joint = dJointCreateContact(ode->world, ode->contacts, &contact[i]);
+    dJointAttach(joint, b1, b2);
+  }
+}
+
+}  // namespace
+
+WorldConfig WorldConfig::quadrant() {
+  WorldConfig c;
+  c.scene = SceneConfig::quadrant();
+  c.horizon = 80;
+  c.lock_ramps = false;
+  return c;
+}
+
+WorldConfig WorldConfig::full() {
+  WorldConfig c;
+  c.scene = SceneConfig::full();
+  c.horizon = 240;
+  c.lock_ramps = true;
+  const double open_arena[4] = {-6.0, -6.0, 12.0, 12.0};  // 18 x 18 m around the arena centre
+  std::copy(std::begin(open_arena), std::end(open_arena), std::begin(c.restrict_rect));
+  c.penalize_objects_out = false;
+  return c;
+}
+
+WorldConfig WorldConfig::empty() {
+  WorldConfig c;
+  c.scene = SceneConfig::empty();
+  c.horizon = 80;
+  c.lock_ramps = true;
+  return c;
+}
+
+int WorldConfig::prep_steps() const {
+  return int(std::ceil(prep_fraction * horizon - 1e-9));
+}
+
+void WorldConfig::validate() const {
+  scene.validate();
+  auto check = [](bool ok, const char* field, double value, const char* allowed) {
+    if (!ok) throw ConfigError(describe(field, value, allowed));
+  };
+  check(horizon >= 1 && horizon <= 1000000, "horizon", horizon, "must be in [1, 1000000]");
+  check(prep_fraction >= 0 && prep_fraction < 1, "prep_fraction", prep_fraction, "must be in [0, 1)");
+  check(grab_radius > 0 && grab_radius <= 2, "grab_radius", grab_radius, "must be in (0, 2] m");
+  check(grab_release_slack >= 0 && grab_release_slack <= 1, "grab_release_slack", grab_release_slack,
+        "must be in [0, 1] m");
+  check(lock_radius > 0 && lock_radius <= 2, "lock_radius", lock_radius, "must be in (0, 2] m");
+  check(physics.step_time > 0 && physics.step_time <= 1, "physics.step_time", physics.step_time,
+        "must be in (0, 1] s");
+  check(physics.substeps >= 1 && physics.substeps <= 200, "physics.substeps", physics.substeps,
+        "must be in [1, 200]");
+  check(physics.solver_iterations >= 1 && physics.solver_iterations <= 1000, "physics.solver_iterations",
+        physics.solver_iterations, "must be in [1, 1000]");
+  check(std::isfinite(physics.gravity) && std::abs(physics.gravity) <= 1000, "physics.gravity",
+        physics.gravity, "must be finite, |g| <= 1000 m/s²");
+  check(physics.erp > 0 && physics.erp <= 1, "physics.erp", physics.erp, "must be in (0, 1]");
+  check(physics.cfm >= 0 && physics.cfm <= 1, "physics.cfm", physics.cfm, "must be in [0, 1]");
+  check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
+        "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
+  check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
+  check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
+  check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,
+        "must be > 0");
+}
+
+World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
+    : config_(config), seed_(seed), world_index_(world_index), ode_(std::make_unique<Ode>()) {
+  config_.validate();
+  ensure_ode_thread();
+  Ode& o = *ode_;
+  o.world = dWorldCreate();
+  // Each world gets its own self-threaded implementation: with Debian's ODE (no TLS), worlds sharing the
+  // default one abort when stepped from two threads at once (DESIGN.md "Threading and ODE").
+  o.threading = dThreadingAllocateSelfThreadedImplementation();
+  dWorldSetStepThreadingImplementation(o.world, dThreadingImplementationGetFunctions(o.threading),
+                                       o.threading);
+  dWorldSetGravity(o.world, 0, 0, config_.physics.gravity);
+  dWorldSetERP(o.world, config_.physics.erp);
+  dWorldSetCFM(o.world, config_.physics.cfm);
+  dWorldSetQuickStepNumIterations(o.world, config_.physics.solver_iterations);
+  dWorldSetContactSurfaceLayer(o.world, config_.physics.contact_surface_layer);
+  dWorldSetContactMaxCorrectingVel(o.world, config_.physics.max_correcting_vel);
+  dWorldSetAutoDisableFlag(o.world, 0);
+  o.dynamic_space = dSimpleSpaceCreate(nullptr);
+  o.static_space = dSimpleSpaceCreate(nullptr);
+  o.contacts = dJointGroupCreate(0);
+  o.wall_info.friction =
+      config_.scene.layout == Layout::kRandomWalls ? kRandomWallFriction : kQuadrantWallFriction;
+
+  dGeomID floor = dCreatePlane(o.static_space, 0, 0, 1, 0);
+  dGeomSetData(floor, &o.floor_info);
+
+  // Bodies for the configured maxima; slots unused in an episode are disabled.
+  const int max_agents = config_.max_agents();
+  const int max_boxes = config_.scene.boxes.max;
+  const int max_ramps = config_.scene.ramps.max;
+  auto make_body = [&](dGeomID geom, GeomInfo* info, double yaw_inertia) {
+    dBodyID body = dBodyCreate(o.world);
+    dMass mass;
+    dMassSetParameters(&mass, kBodyMass, 0, 0, 0, kLockedTiltInertia, kLockedTiltInertia, yaw_inertia, 0, 0,
+                       0);
+    dBodySetMass(body, &mass);
+    dBodySetGyroscopicMode(body, 0);
+    dGeomSetBody(geom, body);
+    dGeomSetData(geom, info);
+    dBodyDisable(body);
+    dGeomDisable(geom);
+    return body;
+  };
+  for (int i = 0; i < max_agents; ++i) {
+    dGeomID g = dCreateSphere(o.dynamic_space, kAgentRadius);
+    o.agent_geoms.push_back(g);
+    o.agents.push_back(make_body(g, &o.agent_info, kAgentYawInertia));
+  }
+  // Boxes and ramps at rest fall asleep (leave the solver) until something touches them.
+  auto allow_sleep = [&](dBodyID body) {
+    if (!config_.physics.sleep) return body;
+    dBodySetAutoDisableFlag(body, 1);
+    dBodySetAutoDisableLinearThreshold(body, config_.physics.sleep_linear_speed);
+    dBodySetAutoDisableAngularThreshold(body, config_.physics.sleep_angular_speed);
+    dBodySetAutoDisableSteps(body, config_.physics.sleep_substeps);
+    dBodySetAutoDisableTime(body, 0);
+    return body;
+  };
+  for (int i = 0; i < max_boxes; ++i) {
+    dGeomID g = dCreateBox(o.dynamic_space, kBoxSize, kBoxSize, kBoxSize);
+    o.box_geoms.push_back(g);
+    o.boxes.push_back(allow_sleep(make_body(g, &o.box_info, kBoxSize * kBoxSize / 6.0)));
+  }
+  o.box_mass.resize(max_boxes);
+  for (int i = 0; i < max_ramps; ++i) {
+    dGeomID g = dCreateConvex(o.dynamic_space, kRampPlanes, 5, kRampPoints, 6, kRampPolygons);
+    o.ramp_geoms.push_back(g);
+    o.ramps.push_back(allow_sleep(make_body(g, &o.ramp_info, kRampYawInertia)));
+  }
+  o.grab.assign(max_agents, nullptr);
+  const int max_objects = max_boxes + max_ramps;
+  locked_.assign(max_objects, 0);
+  lock_team_.assign(max_objects, -1);
+  locker_.assign(max_objects, -1);
+  holding_.assign(max_agents, -1);
+  visibility_.assign(size_t(max_agents) * max_objects, 0);
+  forces_.assign(size_t(max_agents) * 3, 0.0);
+  scratch_.assign(size_t(max_agents), 0);
+}
+
+World::~World() {
+  Ode& o = *ode_;
+  ensure_ode_thread();
+  for (dJointID& j : o.grab) {
+    if (j != nullptr) dJointDestroy(j);
+  }
+  dJointGroupDestroy(o.contacts);
+  dSpaceDestroy(o.dynamic_space);  // destroys its geoms
+  dSpaceDestroy(o.static_space);
+  dWorldSetStepThreadingImplementation(o.world, nullptr, nullptr);
+  dThreadingFreeImplementation(o.threading);
+  dWorldDestroy(o.world);  // destroys bodies and remaining joints
+}
+
+void World::reset(uint64_t episode) {
+  episode_ = episode;
+  rng_ = Rng(seed_, world_index_, episode);
+  generate_scene(config_.scene, rng_, scene_);
+  build_scene();
+}
+
+void World::reset_with_scene(const Scene& scene, uint64_t episode) {
+  auto check = [](int count, int max, const char* what) {
+    if (count > max) {
+      std::ostringstream out;
+      out << "scene has " << count << " " << what << " but the world was configured for at most " << max;
+      throw ConfigError(out.str());
+    }
+  };
+  check(scene.num_hiders + scene.num_seekers, config_.max_agents(), "agents");
+  check(int(scene.boxes.size()), config_.scene.boxes.max, "boxes");
+  check(int(scene.ramps.size()), config_.scene.ramps.max, "ramps");
+  episode_ = episode;
+  rng_ = Rng(seed_, world_index_, episode);
+  scene_ = scene;
+  build_scene();
+}
+
+void World::build_scene() {
+  ensure_ode_thread();
+  Ode& o = *ode_;
+  for (int a = 0; a < int(o.grab.size()); ++a) release(a);
+  dJointGroupEmpty(o.contacts);
+
+  for (dGeomID g : o.walls) dGeomDestroy(g);
+  o.walls.clear();
+  for (const StaticBox& w : scene_.wall_boxes) {
+    dGeomID g = dCreateBox(o.static_space, 2 * w.hx, 2 * w.hy, 2 * w.hz);
+    dGeomSetPosition(g, w.cx, w.cy, w.cz);
+    dGeomSetData(g, &o.wall_info);
+    o.walls.push_back(g);
+  }
+
+  auto place = [](dBodyID body, dGeomID geom, bool active, double x, double y, double z) {
+    dBodySetDynamic(body);
+    dBodySetPosition(body, x, y, z);
+    set_yaw(body, 0.0);
+    dBodySetLinearVel(body, 0, 0, 0);
+    dBodySetAngularVel(body, 0, 0, 0);
+    if (active) {
+      dBodyEnable(body);
+      dGeomEnable(geom);
+    } else {
+      dBodyDisable(body);
+      dGeomDisable(geom);
+    }
+  };
+  // Unused slots park far below the floor, disabled.
+  for (int i = 0; i < int(o.agents.size()); ++i) {
+    const bool active = i < num_agents();
+    const Spawn s = active ? scene_.agents[i] : Spawn{0, 0, -50.0 - i, 0, 0, 0};
+    place(o.agents[i], o.agent_geoms[i], active, s.x, s.y, s.z);
+  }
+  for (int i = 0; i < int(o.boxes.size()); ++i) {
+    const bool active = i < num_boxes();
+    const Spawn s = active ? scene_.boxes[i] : Spawn{0, 0, -60.0 - i, kBoxSize, kBoxSize, kBoxSize};
+    dGeomBoxSetLengths(o.box_geoms[i], s.sx, s.sy, s.sz);
+    dMassSetParameters(&o.box_mass[i], kBodyMass, 0, 0, 0, kLockedTiltInertia, kLockedTiltInertia,
+                       kBodyMass * (s.sx * s.sx + s.sy * s.sy) / 12.0, 0, 0, 0);
+    place(o.boxes[i], o.box_geoms[i], active, s.x, s.y, s.z);
+    dBodySetMass(o.boxes[i], &o.box_mass[i]);
+  }
+  for (int i = 0; i < int(o.ramps.size()); ++i) {
+    const bool active = i < num_ramps();
+    const Spawn s = active ? scene_.ramps[i] : Spawn{0, 0, -70.0 - i, 0, 0, 0};
+    place(o.ramps[i], o.ramp_geoms[i], active, s.x, s.y + kRampCentroidY, s.z + kRampCentroidZ);
+  }
+
+  std::fill(locked_.begin(), locked_.end(), 0);
+  std::fill(lock_team_.begin(), lock_team_.end(), -1);
+  std::fill(locker_.begin(), locker_.end(), -1);
+  std::fill(holding_.begin(), holding_.end(), -1);
+  t_ = 0;
+  prep_steps_ = config_.prep_steps();
+  unstable_ = false;
+  std::fill(visibility_.begin(), visibility_.end(), 0);
+  if (config_.compute_visibility) update_visibility();
+}
+
+void World::step(std::span<const AgentAction> actions) {
+  if (int(actions.size()) != num_agents()) {
+    throw std::invalid_argument("World::step: got " + std::to_string(actions.size()) + " actions for " +
+                                std::to_string(num_agents()) + " agents");
+  }
+  ensure_ode_thread();
+  ScopedSolverRng solver_rng(rng_);
+  // Seekers are powerless during the preparation phase (SPEC §3.5): their action is the zero action.
+  const bool prep = t_ < prep_steps_;
+  AgentAction effective_storage[64];
+  std::vector<AgentAction> effective_heap;
+  AgentAction* effective = effective_storage;
+  if (actions.size() > std::size(effective_storage)) {
+    effective_heap.resize(actions.size());
+    effective = effective_heap.data();
+  }
+  for (int a = 0; a < num_agents(); ++a) {
+    effective[a] = (prep && team(a) == Team::kSeeker) ? AgentAction{} : actions[a];
+  }
+  const std::span<const AgentAction> acts(effective, actions.size());
+
+  apply_grab(acts);
+  apply_lock(acts);
+  for (int a = 0; a < num_agents(); ++a) {
+    const AgentAction& act = acts[a];
+    forces_[3 * a + 0] = kGear * bin_control(std::min<int>(act.move_x, kMoveBins - 1));
+    forces_[3 * a + 1] = kGear * bin_control(std::min<int>(act.move_y, kMoveBins - 1));
+    forces_[3 * a + 2] = kGear * bin_control(std::min<int>(act.turn, kMoveBins - 1));
+  }
+  for (int s = 0; s < config_.physics.substeps; ++s) substep(forces_);
+  ++t_;
+  check_stability();
+  if (config_.compute_visibility) update_visibility();
+}
+
+void World::substep(std::span<const double> forces) {
+  Ode& o = *ode_;
+  const double dt = config_.physics.step_time / config_.physics.substeps;
+  // Joint damping as a force the solver sees, sized as MuJoCo's implicit Euler damping would act:
+  // F_d = -c·(m·v + F·dt)/(m + c·dt), with m the mass (or yaw inertia) that moves with the body. Unlike
+  // explicit damping it stays stable for the agent's tiny yaw inertia (c·dt/I ≈ 8); unlike rescaling the
+  // velocity after the step it keeps grab joints tight.
+  auto damp = [dt](dBodyID body, double fx, double fy, double tz, double damp_xy, double damp_z,
+                   double damp_yaw, double mass, double yaw_inertia) {
+    if (dBodyIsKinematic(body)) return;
+    const dReal* v = dBodyGetLinearVel(body);
+    const dReal* w = dBodyGetAngularVel(body);
+    const double kxy = damp_xy / (mass + damp_xy * dt);
+    const double kz = damp_z / (mass + damp_z * dt);
+    dBodyAddForce(body, fx - kxy * (mass * v[0] + fx * dt), fy - kxy * (mass * v[1] + fy * dt),
+                  -kz * mass * v[2]);
+    const double kyaw = damp_yaw / (yaw_inertia + damp_yaw * dt);
+    dBodyAddTorque(body, 0, 0, tz - kyaw * (yaw_inertia * w[2] + tz * dt));
+  };
+  for (int a = 0; a < num_agents(); ++a) {
+    // An agent holding an object moves it too: its damping sees the pair's mass and yaw inertia.
+    double mass = kBodyMass, yaw_inertia = kAgentYawInertia;
+    if (holding_[a] >= 0) {
+      dBodyID held = o.object_body(holding_[a]);
+      const dReal* pa = dBodyGetPosition(o.agents[a]);
+      const dReal* ph = dBodyGetPosition(held);
+      const double d2 = (pa[0] - ph[0]) * (pa[0] - ph[0]) + (pa[1] - ph[1]) * (pa[1] - ph[1]);
+      dMass held_mass;
+      dBodyGetMass(held, &held_mass);
+      mass += kBodyMass;
+      yaw_inertia += held_mass.I[2 * 4 + 2] + kBodyMass * d2;
+    }
+    damp(o.agents[a], forces[3 * a], forces[3 * a + 1], forces[3 * a + 2], kAgentDampXY, kAgentDampZ,
+         kAgentDampYaw, mass, yaw_inertia);
+  }
+  for (int b = 0; b < num_boxes(); ++b) {
+    damp(o.boxes[b], 0, 0, 0, kBoxDamp, kBoxDamp, kBoxDamp, kBodyMass, o.box_mass[b].I[2 * 4 + 2]);
+  }
+  for (int r = 0; r < num_ramps(); ++r) {
+    damp(o.ramps[r], 0, 0, 0, kRampDamp, kRampDamp, kRampDamp, kBodyMass, kRampYawInertia);
+  }
+
+  dSpaceCollide(o.dynamic_space, &o, near_callback);
+  dSpaceCollide2(reinterpret_cast<dGeomID>(o.dynamic_space), reinterpret_cast<dGeomID>(o.static_space), &o,
+                 near_callback);
+  dWorldQuickStep(o.world, dt);
+  dJointGroupEmpty(o.contacts);
+
+  // Keep every body rotating about z only: drop the tilt that contact torques left.
+  auto keep_yaw_only = [](dBodyID body) {
+    if (dBodyIsKinematic(body) || !dBodyIsEnabled(body)) return;
+    const dReal* w = dBodyGetAngularVel(body);
+    dBodySetAngularVel(body, 0, 0, w[2]);
+    const dReal* q = dBodyGetQuaternion(body);
+    const double norm = std::sqrt(q[0] * q[0] + q[3] * q[3]);
+    const dQuaternion yaw_only = {q[0] / norm, 0, 0, q[3] / norm};
+    dBodySetQuaternion(body, yaw_only);
+  };
+  for (int a = 0; a < num_agents(); ++a) keep_yaw_only(o.agents[a]);
+  for (int b = 0; b < num_boxes(); ++b) keep_yaw_only(o.boxes[b]);
+  for (int r = 0; r < num_ramps(); ++r) keep_yaw_only(o.ramps[r]);
+}
+
+void World::check_stability() {
+  auto sane = [](dBodyID body) {
+    const dReal* p = dBodyGetPosition(body);
+    const dReal* v = dBodyGetLinearVel(body);
+    for (int i = 0; i < 3; ++i) {
+      if (!std::isfinite(p[i]) || !std::isfinite(v[i]) || std::abs(v[i]) > kSaneSpeed) return false;
+    }
+    return std::abs(p[0]) < kSaneXY && std::abs(p[1]) < kSaneXY && std::abs(p[2]) < kSaneZ;
+  };
+  const Ode& o = *ode_;
+  for (int a = 0; a < num_agents(); ++a) unstable_ = unstable_ || !sane(o.agents[a]);
+  for (int b = 0; b < num_boxes(); ++b) unstable_ = unstable_ || !sane(o.boxes[b]);
+  for (int r = 0; r < num_ramps(); ++r) unstable_ = unstable_ || !sane(o.ramps[r]);
+}
+
+double World::agent_object_distance(int agent, int object) const {
+  const BodyState a = agent_state(agent);
+  OrientedBox box;
+  if (object < num_boxes()) {
+    const BodyState b = box_state(object);
+    const Spawn& s = scene_.boxes[object];
+    box = OrientedBox{b.pos[0],   b.pos[1],   b.pos[2],        0.5 * s.sx,
+                      0.5 * s.sy, 0.5 * s.sz, std::cos(b.yaw), std::sin(b.yaw)};
+  } else {
+    const BodyState r = ramp_state(object - num_boxes());
+    box = wedge_bounds(Wedge{r.pos[0], r.pos[1], r.pos[2], std::cos(r.yaw), std::sin(r.yaw)});
+  }
+  return distance_to_box(a.pos, box);
+}
+
+void World::release(int agent) {
+  dJointID& joint = ode_->grab[agent];
+  if (joint != nullptr) {
+    dJointDestroy(joint);
+    joint = nullptr;
+  }
+  holding_[agent] = -1;
+}
+
+// Grab (SPEC §3.3, §14.2): each agent pressing grab holds the closest object that it saw in the last
+// observation and that lies within the grab radius (plus a slack for the object it already holds). The
+// object keeps its pose relative to the agent through an ODE fixed joint.
+void World::apply_grab(std::span<const AgentAction> actions) {
+  Ode& o = *ode_;
+  const int n_obj = num_objects();
+  for (int a = 0; a < num_agents(); ++a) {
+    int target = -1;
+    if (actions[a].grab != 0) {
+      double best = 1e30;
+      for (int obj = 0; obj < n_obj; ++obj) {
+        if (visibility_[size_t(a) * n_obj + obj] == 0) continue;
+        const double d = agent_object_distance(a, obj);
+        const double limit = config_.grab_radius + (holding_[a] == obj ? config_.grab_release_slack : 0.0);
+        if (d <= limit && d < best) {
+          best = d;
+          target = obj;
+        }
+      }
+    }
+    if (target == holding_[a]) continue;
+    release(a);
+    if (target >= 0) {
+      dJointID joint = dJointCreateFixed(o.world, nullptr);
+      dBodyEnable(o.object_body(target));  // a sleeping object wakes when grabbed
+      dJointAttach(joint, o.agents[a], o.object_body(target));
+      dJointSetFixed(joint);
+      o.grab[a] = joint;
+      holding_[a] = target;
+    }
+  }
+}
+
+// Lock (SPEC §3.4 'all_lock_team_specific', §14.3): an object in range and in view of an agent pressing
+// lock gets pinned, unless a member of the team that locked it last stands in range, sees it and does not
+// press lock: that unlocks it. A never-locked object has no owner, so nobody vetoes its first lock.
+void World::apply_lock(std::span<const AgentAction> actions) {
+  const int n_obj = num_objects();
+  const int first = config_.lock_ramps ? n_obj - 1 : num_boxes() - 1;
+  // Ramps first, then boxes (the original's wrapper order).
+  for (int obj = first; obj >= 0; --obj) {
+    int desiring = 0;
+    bool unlock = false;
+    for (int a = 0; a < num_agents(); ++a) {
+      scratch_[a] = 0;
+      if (visibility_[size_t(a) * n_obj + obj] == 0) continue;
+      if (agent_object_distance(a, obj) > config_.lock_radius) continue;
+      if (actions[a].lock != 0) {
+        scratch_[a] = 1;
+        ++desiring;
+      } else if (lock_team_[obj] >= 0 && int(team(a)) == lock_team_[obj]) {
+        unlock = true;
+      }
+    }
+    const bool lock = desiring > 0 && !unlock;
+    if (lock && locked_[obj] == 0) {
+      // A new lock: the owner is one of the desiring agents, drawn from the world's stream.
+      int pick = rng_.uniform_int(0, desiring);
+      for (int a = 0; a < num_agents(); ++a) {
+        if (scratch_[a] != 0 && pick-- == 0) {
+          locker_[obj] = int8_t(a);
+          lock_team_[obj] = int8_t(team(a));
+          break;
+        }
+      }
+    }
+    const bool now_locked = (locked_[obj] != 0 && !unlock) || lock;
+    if (now_locked != (locked_[obj] != 0)) set_locked(obj, now_locked);
+  }
+}
+
+void World::set_locked(int object, bool locked) {
+  Ode& o = *ode_;
+  dBodyID body = o.object_body(object);
+  if (locked) {
+    dBodySetKinematic(body);
+    dBodySetLinearVel(body, 0, 0, 0);
+    dBodySetAngularVel(body, 0, 0, 0);
+  } else {
+    dBodySetDynamic(body);
+    dBodyEnable(body);
+    if (object < num_boxes()) {
+      dBodySetMass(body, &o.box_mass[object]);
+    } else {
+      dMass mass;
+      dMassSetParameters(&mass, kBodyMass, 0, 0, 0, kLockedTiltInertia, kLockedTiltInertia, kRampYawInertia,
+                         0, 0, 0);
+      dBodySetMass(body, &mass);
+    }
+  }
+  locked_[object] = locked ? 1 : 0;
+}
+
+namespace {
+BodyState read_body(dBodyID body) {
+  BodyState s;
+  const dReal* p = dBodyGetPosition(body);
+  const dReal* v = dBodyGetLinearVel(body);
+  const dReal* w = dBodyGetAngularVel(body);
+  for (int i = 0; i < 3; ++i) {
+    s.pos[i] = p[i];
+    s.vel[i] = v[i];
+  }
+  s.yaw = body_yaw(body);
+  s.ang_vel = w[2];
+  return s;
+}
+}  // namespace
+
+BodyState World::agent_state(int agent) const {
+  return read_body(ode_->agents[agent]);
+}
+BodyState World::box_state(int box) const {
+  return read_body(ode_->boxes[box]);
+}
+
+BodyState World::ramp_state(int ramp) const {
+  BodyState s = read_body(ode_->ramps[ramp]);
+  // Body origin is the wedge centroid; report the bounding-box centre.
+  const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
+  s.pos[0] += sn * kRampCentroidY;
+  s.pos[1] -= c * kRampCentroidY;
+  s.pos[2] -= kRampCentroidZ;
+  return s;
+}
+
+namespace {
+void move_body(dBodyID body, double x, double y, double z, double yaw) {
+  dBodyEnable(body);
+  dBodySetPosition(body, x, y, z);
+  set_yaw(body, yaw);
+  dBodySetLinearVel(body, 0, 0, 0);
+  dBodySetAngularVel(body, 0, 0, 0);
+}
+}  // namespace
+
+void World::set_agent_pose(int agent, double x, double y, double z, double yaw) {
+  move_body(ode_->agents[agent], x, y, z, yaw);
+}
+void World::set_box_pose(int box, double x, double y, double z, double yaw) {
+  move_body(ode_->boxes[box], x, y, z, yaw);
+}
+void World::set_ramp_pose(int ramp, double x, double y, double z, double yaw) {
+  const double c = std::cos(yaw), s = std::sin(yaw);
+  move_body(ode_->ramps[ramp], x - s * kRampCentroidY, y + c * kRampCentroidY, z + kRampCentroidZ, yaw);
+}
+
+Occluders World::occluders() {
+  occ_walls_.clear();
+  for (const StaticBox& w : scene_.wall_boxes)
+    occ_walls_.push_back({w.cx, w.cy, w.cz, w.hx, w.hy, w.hz, 1, 0});
+  occ_boxes_.clear();
+  for (int b = 0; b < num_boxes(); ++b) {
+    const BodyState s = box_state(b);
+    const Spawn& sz = scene_.boxes[b];
+    occ_boxes_.push_back({s.pos[0], s.pos[1], s.pos[2], 0.5 * sz.sx, 0.5 * sz.sy, 0.5 * sz.sz,
+                          std::cos(s.yaw), std::sin(s.yaw)});
+  }
+  occ_ramps_.clear();
+  for (int r = 0; r < num_ramps(); ++r) {
+    const BodyState s = ramp_state(r);
+    occ_ramps_.push_back({s.pos[0], s.pos[1], s.pos[2], std::cos(s.yaw), std::sin(s.yaw)});
+  }
+  occ_agents_.clear();
+  for (int a = 0; a < num_agents(); ++a) {
+    const BodyState s = agent_state(a);
+    occ_agents_.push_back({s.pos[0], s.pos[1], s.pos[2], kAgentRadius});
+  }
+  return Occluders{occ_walls_, occ_boxes_, occ_ramps_, occ_agents_};
+}
+
+void World::update_visibility() {
+  const Occluders occ = occluders();
+  const int n_obj = num_objects();
+  for (int a = 0; a < num_agents(); ++a) {
+    const double yaw = agent_state(a).yaw;
+    const double c = std::cos(yaw), s = std::sin(yaw);
+    for (int obj = 0; obj < n_obj; ++obj) {
+      const bool is_box = obj < num_boxes();
+      visibility_[size_t(a) * n_obj + obj] =
+          visible(occ, a, c, s, is_box ? HitKind::kBox : HitKind::kRamp, is_box ? obj : obj - num_boxes())
+              ? 1
+              : 0;
+    }
+  }
+}
+
+}  // namespace hns::physics

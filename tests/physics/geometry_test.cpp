@@ -1,0 +1,140 @@
+// The scalar vision, line-of-sight and lidar reference on hand-built scenes (SPEC.md §4.1, §4.2, §14.6-7).
+#include "physics/geometry.hpp"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cmath>
+#include <vector>
+
+namespace hns::physics {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// A 0.5 m high, 0.1 m thick wall along y, centred at x = cx.
+OrientedBox wall_x(double cx, double cy = 3.0, double half_len = 1.0, double height = 0.5) {
+  return OrientedBox{cx, cy, 0.5 * height, 0.05, half_len, 0.5 * height, 1, 0};
+}
+
+TEST(Geometry, RayHitsBoxFaceAtKnownDistance) {
+  const OrientedBox box{3.0, 3.0, 0.25, 0.25, 0.25, 0.25, 1, 0};
+  const double o[3] = {1.0, 3.0, 0.25}, d[3] = {1, 0, 0};
+  EXPECT_NEAR(ray_box(o, d, box), 1.75, 1e-12);
+  const double away[3] = {-1, 0, 0};
+  EXPECT_GE(ray_box(o, away, box), kNoHit);
+  // Rotated by 45°: the corner now points at the ray, 0.25·√2 from the centre.
+  const OrientedBox turned{3.0, 3.0, 0.25, 0.25, 0.25, 0.25, std::cos(kPi / 4), std::sin(kPi / 4)};
+  EXPECT_NEAR(ray_box(o, d, turned), 2.0 - 0.25 * std::sqrt(2.0), 1e-12);
+}
+
+TEST(Geometry, RayHitsRampSlopeOrBackFace) {
+  // Yaw 0: back face at y = cy - 0.25 faces -y, slope rises toward -y.
+  const Wedge ramp{3.0, 3.0, 0.25, 1, 0};
+  // Coming from +y at z = 0.1 (0.15 above the bottom): the slope is at local y = -(z_local) = 0.15.
+  const double from_front[3] = {3.0, 5.0, 0.1}, toward_minus_y[3] = {0, -1, 0};
+  EXPECT_NEAR(ray_wedge(from_front, toward_minus_y, ramp), 5.0 - (3.0 + 0.15), 1e-12);
+  // Coming from -y: the vertical back face at y = 2.75.
+  const double from_back[3] = {3.0, 1.0, 0.4}, toward_plus_y[3] = {0, 1, 0};
+  EXPECT_NEAR(ray_wedge(from_back, toward_plus_y, ramp), 1.75, 1e-12);
+  // Higher up, the slope is hit closer to the back.
+  const double high[3] = {3.0, 5.0, 0.2};
+  EXPECT_NEAR(ray_wedge(high, toward_minus_y, ramp), 5.0 - (3.0 + 0.05), 1e-12);
+  // Above the top edge (z = 0.5): nothing to hit.
+  const double above[3] = {3.0, 5.0, 0.55};
+  EXPECT_GE(ray_wedge(above, toward_minus_y, ramp), kNoHit);
+}
+
+TEST(Geometry, VisionConeIs135Degrees) {
+  // An agent at the origin with yaw 0 faces -y.
+  auto at_angle_off_facing = [](double deg) {
+    const double a = -kPi / 2 + deg * kPi / 180;  // facing direction is -y, i.e. angle -90°
+    return std::array<double, 2>{std::cos(a), std::sin(a)};
+  };
+  for (double deg : {0.0, 30.0, -60.0, 67.0, -67.0}) {
+    const auto p = at_angle_off_facing(deg);
+    EXPECT_TRUE(in_vision_cone(0, 0, 1, 0, p[0], p[1])) << deg << "°";
+  }
+  for (double deg : {70.0, -70.0, 90.0, 180.0}) {
+    const auto p = at_angle_off_facing(deg);
+    EXPECT_FALSE(in_vision_cone(0, 0, 1, 0, p[0], p[1])) << deg << "°";
+  }
+  // Turning the agent by 90° (yaw π/2) makes it face +x.
+  EXPECT_TRUE(in_vision_cone(0, 0, std::cos(kPi / 2), std::sin(kPi / 2), 1, 0));
+  EXPECT_FALSE(in_vision_cone(0, 0, std::cos(kPi / 2), std::sin(kPi / 2), 0, -1));
+}
+
+TEST(Geometry, WallBetweenAgentsBlocksSight) {
+  const std::vector<Sphere> agents = {{1.0, 3.0, 0.15, 0.15}, {5.0, 3.0, 0.15, 0.15}};
+  const std::vector<OrientedBox> walls = {wall_x(3.0)};
+  const Occluders occ{walls, {}, {}, agents};
+  // Agent 0 faces +x (yaw π/2), straight at agent 1.
+  EXPECT_FALSE(visible(occ, 0, std::cos(kPi / 2), std::sin(kPi / 2), HitKind::kAgent, 1));
+  const Occluders open{{}, {}, {}, agents};
+  EXPECT_TRUE(visible(open, 0, std::cos(kPi / 2), std::sin(kPi / 2), HitKind::kAgent, 1));
+}
+
+TEST(Geometry, AgentOnBoxSeesOverHalfMetreWall) {
+  // The viewer stands on a 0.5 m box (centre at 0.65 m); the target stands on the floor 1.5 m behind the
+  // wall. The ray from 0.65 m down to 0.15 m crosses the wall's plane above 0.5 m only if the wall is near
+  // the viewer.
+  const std::vector<Sphere> agents = {{2.7, 3.0, 0.65, 0.15}, {4.5, 3.0, 0.15, 0.15}};
+  const std::vector<OrientedBox> boxes = {{2.7, 3.0, 0.25, 0.25, 0.25, 0.25, 1, 0}};
+  const std::vector<OrientedBox> walls = {wall_x(3.0)};
+  const Occluders occ{walls, boxes, {}, agents};
+  EXPECT_TRUE(line_of_sight(occ, 0, HitKind::kAgent, 1));
+  // The same pair with the viewer on the floor: blocked.
+  const std::vector<Sphere> on_floor = {{2.7, 3.0, 0.15, 0.15}, {4.5, 3.0, 0.15, 0.15}};
+  const Occluders low{walls, {}, {}, on_floor};
+  EXPECT_FALSE(line_of_sight(low, 0, HitKind::kAgent, 1));
+}
+
+TEST(Geometry, BoxesRampsAndAgentsOccludeButTheFloorDoesNot) {
+  const std::vector<Sphere> agents = {{1.0, 3.0, 0.15, 0.15}, {5.0, 3.0, 0.15, 0.15}, {3.0, 3.0, 0.15, 0.15}};
+  const Occluders through_agent{{}, {}, {}, agents};
+  EXPECT_FALSE(line_of_sight(through_agent, 0, HitKind::kAgent, 1));
+  EXPECT_TRUE(line_of_sight(through_agent, 0, HitKind::kAgent, 2));
+  const std::vector<Sphere> two = {agents[0], agents[1]};
+  const std::vector<OrientedBox> box = {{3.0, 3.0, 0.25, 0.25, 0.25, 0.25, 1, 0}};
+  EXPECT_FALSE(line_of_sight(Occluders{{}, box, {}, two}, 0, HitKind::kAgent, 1));
+  EXPECT_TRUE(line_of_sight(Occluders{{}, box, {}, two}, 0, HitKind::kBox, 0));
+  const std::vector<Wedge> ramp = {{3.0, 3.0, 0.25, 1, 0}};
+  EXPECT_FALSE(line_of_sight(Occluders{{}, {}, ramp, two}, 0, HitKind::kAgent, 1));
+}
+
+TEST(Geometry, LidarReadsWallDistanceAndRangeCap) {
+  const std::vector<Sphere> agents = {{1.0, 3.0, 0.15, 0.15}};
+  const std::vector<OrientedBox> walls = {wall_x(3.0, 3.0, 1.0)};
+  std::array<double, kLidarRays> out{};
+  lidar(Occluders{walls, {}, {}, agents}, 0, out);
+  EXPECT_NEAR(out[0], 3.0 - 0.05 - 1.0, 1e-9) << "ray 0 points along +x at the wall";
+  EXPECT_DOUBLE_EQ(out[15], kLidarRange) << "ray 15 points along -x at nothing";
+  // Ray 1 (12°) hits the same wall plane farther away.
+  EXPECT_NEAR(out[1], 1.95 / std::cos(2 * kPi / 30), 1e-9);
+  // A wall 7 m away reads as the 6 m range.
+  const std::vector<OrientedBox> far = {wall_x(8.05)};
+  lidar(Occluders{far, {}, {}, agents}, 0, out);
+  EXPECT_DOUBLE_EQ(out[0], kLidarRange);
+}
+
+TEST(Geometry, LidarIgnoresOwnBodyButSeesOtherAgents) {
+  const std::vector<Sphere> agents = {{1.0, 3.0, 0.15, 0.15}, {2.0, 3.0, 0.15, 0.15}};
+  std::array<double, kLidarRays> out{};
+  lidar(Occluders{{}, {}, {}, agents}, 0, out);
+  EXPECT_NEAR(out[0], 0.85, 1e-9);
+  EXPECT_DOUBLE_EQ(out[10], kLidarRange);
+}
+
+TEST(Geometry, DistanceToOrientedBox) {
+  const OrientedBox box{3.0, 3.0, 0.25, 0.825, 0.075, 0.25, 1, 0};
+  const double inside[3] = {3.5, 3.0, 0.2}, beside[3] = {3.0, 3.3, 0.15}, corner[3] = {4.0, 3.2, 0.25};
+  EXPECT_DOUBLE_EQ(distance_to_box(inside, box), 0.0);
+  EXPECT_NEAR(distance_to_box(beside, box), 0.225, 1e-12);
+  EXPECT_NEAR(distance_to_box(corner, box), std::hypot(0.175, 0.125), 1e-12);
+  // Turned by 90°, the long side runs along y.
+  const OrientedBox turned{3.0, 3.0, 0.25, 0.825, 0.075, 0.25, 0, 1};
+  EXPECT_DOUBLE_EQ(distance_to_box(beside, turned), 0.0);
+}
+
+}  // namespace
+}  // namespace hns::physics

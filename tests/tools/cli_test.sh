@@ -1,0 +1,49 @@
+#!/usr/bin/env bash
+# The hns command line: bad input exits 2 with a message naming the problem; a short bench run writes the
+# documented JSON fields. Usage: cli_test.sh path/to/hns
+set -u
+hns="$1"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+passed=0
+failed=0
+
+# expect_fail CODE PATTERN ARGS...: the command exits CODE and its output matches PATTERN.
+expect_fail() {
+  local code="$1" pattern="$2"
+  shift 2
+  local out rc
+  out="$("$hns" "$@" 2>&1)"
+  rc=$?
+  if [ "$rc" -eq "$code" ] && grep -q -E -- "$pattern" <<<"$out"; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
+    echo "FAIL: hns $* -> exit $rc (want $code), output: $out"
+  fi
+}
+
+expect_fail 2 "scene" bench --scene nowhere
+expect_fail 2 "envs" bench --envs -3
+expect_fail 2 "threads" bench --threads 0
+expect_fail 2 "boxes" bench --scene quadrant --boxes 40
+expect_fail 2 "boxes.max = 20" bench --scene quadrant --boxes 20
+expect_fail 2 "hiders" bench --hiders 0 --seekers 0
+expect_fail 2 "" bench --no-such-flag
+expect_fail 2 "" frobnicate
+
+# A short real run writes the JSON figures, and no temporary file is left behind.
+if "$hns" bench --scene full --envs 2 --steps 20 --json "$tmp/out.json" >"$tmp/log" 2>&1 &&
+   grep -q '"env_steps_per_s"' "$tmp/out.json" && grep -q '"agent_steps_per_s"' "$tmp/out.json" &&
+   grep -q '"phases"' "$tmp/out.json" && grep -q '"scene": "full"' "$tmp/out.json" &&
+   [ ! -e "$tmp/out.json.tmp" ] && grep -q "env-steps/s" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
+fi
+# An unwritable JSON path fails with status 1 and says so.
+expect_fail 1 "cannot write" bench --envs 1 --steps 1 --json "$tmp/missing-dir/out.json"
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
