@@ -1,0 +1,143 @@
+// `hns bench`: throughput of the batch simulator with seeded random actions.
+//
+//   hns bench --scene quadrant|full|empty [--envs N] [--steps S] [--threads T] [--seed S]
+//             [--hiders H --seekers K --boxes B --ramps R] [--substeps N] [--json FILE]
+#include <chrono>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "batch/batch_sim.hpp"
+#include "cli.hpp"
+#include "physics/presets.hpp"
+
+namespace hns::tools {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+namespace phys = hns::physics;
+
+struct BenchOptions {
+  std::string scene = "quadrant";
+  int envs = 16;
+  int steps = 1000;
+  int threads = 1;
+  uint64_t seed = 1;
+  std::optional<int> hiders, seekers, boxes, ramps, substeps;
+  std::string json;
+};
+
+// Throughput of the batch simulator with seeded uniformly random actions: env-steps/s, agent-steps/s and
+// the thread time per phase.
+int run_bench(const BenchOptions& opt) {
+  hns::batch::BatchConfig config;
+  config.world = phys::world_preset(opt.scene);
+  phys::apply_overrides(config.world, phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
+  if (opt.substeps) config.world.physics.substeps = *opt.substeps;
+  config.num_envs = opt.envs;
+  config.threads = opt.threads;
+  config.seed = opt.seed;
+  config.validate();
+
+  std::printf("hns bench: scene %s, %d envs x %d steps, %d thread%s, %d substeps\n", opt.scene.c_str(),
+              opt.envs, opt.steps, opt.threads, opt.threads == 1 ? "" : "s", config.world.physics.substeps);
+  std::fflush(stdout);
+  hns::batch::BatchSim sim(config);
+  const int max_agents = sim.layout().max_agents;
+  std::vector<phys::AgentAction> actions(size_t(opt.envs) * max_agents);
+  phys::Rng rng(opt.seed, 0xAC7105, 0);
+  sim.reset_timers();
+
+  int64_t agent_steps = 0, episodes = 0;
+  const auto start = Clock::now();
+  auto last_report = start;
+  for (int s = 0; s < opt.steps; ++s) {
+    for (phys::AgentAction& a : actions) {
+      a = phys::AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                            uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                            uint8_t(rng.uniform_int(0, 2))};
+    }
+    for (int e = 0; e < opt.envs; ++e) agent_steps += sim.world(e).num_agents();
+    sim.step(actions);
+    episodes += int64_t(sim.finished().size());
+    const auto now = Clock::now();
+    if (now - last_report > std::chrono::seconds(2)) {
+      last_report = now;
+      const double done = double(s + 1) / opt.steps;
+      const double elapsed = std::chrono::duration<double>(now - start).count();
+      std::fprintf(stderr, "  step %d/%d (%.0f%%), %.0f env-steps/s, ETA %.0f s\n", s + 1, opt.steps,
+                   100 * done, (s + 1.0) * opt.envs / elapsed, elapsed * (1 - done) / done);
+    }
+  }
+  const double wall = std::chrono::duration<double>(Clock::now() - start).count();
+  const hns::batch::PhaseTimes& ph = sim.phase_times();
+  const double thread_s = ph.physics + ph.perception + ph.observations + ph.rewards;
+  const double env_steps = double(opt.envs) * opt.steps;
+  auto share = [&](double x) { return thread_s > 0 ? 100 * x / thread_s : 0.0; };
+  std::printf("  env-steps/s    %12.0f\n  agent-steps/s  %12.0f\n", env_steps / wall, agent_steps / wall);
+  std::printf("  per env-step   %12.2f us of thread time, %lld episodes finished\n",
+              1e6 * thread_s / env_steps, static_cast<long long>(episodes));
+  std::printf(
+      "  phases (share of thread time): physics %.1f%%, vision+lidar %.1f%%, observations %.1f%%, "
+      "rewards/resets %.1f%%\n",
+      share(ph.physics), share(ph.perception), share(ph.observations), share(ph.rewards));
+  if (sim.unstable_resets() > 0) {
+    std::printf("  warning: %lld episode(s) were reset after numerical instability\n",
+                static_cast<long long>(sim.unstable_resets()));
+  }
+
+  if (!opt.json.empty()) {
+    nlohmann::json j;
+    j["scene"] = opt.scene;
+    j["envs"] = opt.envs;
+    j["threads"] = opt.threads;
+    j["steps"] = opt.steps;
+    j["seed"] = opt.seed;
+    j["substeps"] = config.world.physics.substeps;
+    j["wall_s"] = wall;
+    j["env_steps_per_s"] = env_steps / wall;
+    j["agent_steps_per_s"] = agent_steps / wall;
+    j["episodes_finished"] = episodes;
+    j["unstable_resets"] = sim.unstable_resets();
+    j["phases"] = {{"physics_s", ph.physics},
+                   {"vision_lidar_s", ph.perception},
+                   {"observations_s", ph.observations},
+                   {"rewards_resets_s", ph.rewards}};
+    write_atomically(opt.json, j.dump(2) + "\n");
+    std::printf("  wrote %s\n", opt.json.c_str());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
+  auto opt = std::make_shared<BenchOptions>();
+  CLI::App* cmd = app.add_subcommand("bench", "Throughput of the simulator with random actions");
+  cmd->add_option("--scene", opt->scene, "Scene preset")
+      ->check(CLI::IsMember({"quadrant", "full", "empty"}))
+      ->capture_default_str();
+  cmd->add_option("--envs", opt->envs, "Number of envs")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  cmd->add_option("--steps", opt->steps, "Env steps per env")
+      ->check(CLI::Range(1, 1 << 30))
+      ->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Worker threads")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  cmd->add_option("--seed", opt->seed, "Seed of scenes and actions")->capture_default_str();
+  cmd->add_option("--hiders", opt->hiders, "Fix the hider count")->check(CLI::Range(0, 32));
+  cmd->add_option("--seekers", opt->seekers, "Fix the seeker count")->check(CLI::Range(0, 32));
+  cmd->add_option("--boxes", opt->boxes, "Fix the box count")->check(CLI::Range(0, 32));
+  cmd->add_option("--ramps", opt->ramps, "Fix the ramp count")->check(CLI::Range(0, 16));
+  cmd->add_option("--substeps", opt->substeps, "Physics substeps per env step")->check(CLI::Range(1, 200));
+  cmd->add_option("--json", opt->json, "Write the figures as JSON to this file");
+  commands.push_back({cmd, [opt] { return run_bench(*opt); }});
+}
+
+}  // namespace hns::tools
