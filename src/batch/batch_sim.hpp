@@ -193,6 +193,8 @@ class BatchSim {
   ShapesView shapes(int env) const;
   // The underlying world of env e (read-only; tests and tools).
   const physics::World& world(int env) const { return *worlds_[env]; }
+  // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step.
+  physics::World& mutable_world(int env) { return *worlds_[env]; }
 
  private:
   struct EnvScratch;

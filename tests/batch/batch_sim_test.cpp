@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -247,6 +248,71 @@ TEST(BatchObservations, PolicyMaskFollowsVisionValueMaskFollowsExistence) {
   EXPECT_EQ(sim.state().value_mask_boxes[1], 1);
   const float* box1 = sim.state().obs_boxes.data() + Layout::kBoxFeatures;
   EXPECT_FLOAT_EQ(box1[1], 4.5f) << "unseen boxes still carry their features for the value function";
+}
+
+// A body thrown far out of the world (as an exploding simulation would) resets that env only.
+TEST(BatchEpisodes, NumericalTroubleResetsOnlyThatEnv) {
+  BatchConfig config = test_config(2);
+  BatchSim sim(config);
+  const std::vector<AgentAction> idle(size_t(sim.num_envs()) * sim.layout().max_agents);
+  sim.step(idle);
+  const int other_steps = sim.state().step_count[1];
+  sim.mutable_world(0).set_agent_pose(0, 500.0, 3.0, 0.15, 0.0);
+  sim.step(idle);
+  ASSERT_EQ(sim.finished().size(), 1u);
+  EXPECT_TRUE(sim.finished()[0].discarded);
+  EXPECT_EQ(sim.finished()[0].env, 0);
+  EXPECT_EQ(sim.unstable_resets(), 1);
+  EXPECT_EQ(sim.state().done[0], 1);
+  EXPECT_EQ(sim.state().episode[0], 1);
+  EXPECT_FALSE(sim.world(0).unstable());
+  EXPECT_EQ(sim.state().done[1], 0);
+  EXPECT_EQ(sim.state().step_count[1], other_steps + 1) << "the other env carries on";
+}
+
+// The batch's float SIMD vision agrees with the physics layer's double-precision reference.
+TEST(BatchVision, MatchesScalarReferenceOnRandomEpisodes) {
+  BatchConfig config;
+  config.world = physics::WorldConfig::full();
+  config.num_envs = 6;
+  config.seed = 9;
+  BatchSim sim(config);
+  physics::Rng rng(9, 1, 0);
+  const Layout& L = sim.layout();
+  std::vector<AgentAction> acts(size_t(sim.num_envs()) * L.max_agents);
+  int compared = 0, disagreed = 0;
+  for (int k = 0; k < 40; ++k) {
+    for (AgentAction& a : acts) {
+      a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                      uint8_t(rng.uniform_int(0, 11)), 0, 0};
+    }
+    sim.step(acts);
+    for (int e = 0; e < sim.num_envs(); ++e) {
+      physics::World& world = sim.mutable_world(e);
+      const physics::Occluders occ = world.occluders();
+      for (int a = 0; a < world.num_agents(); ++a) {
+        const double yaw = world.agent_state(a).yaw;
+        const double c = std::cos(yaw), s = std::sin(yaw);
+        for (int j = 0; j < world.num_agents(); ++j) {
+          const bool ref = physics::visible(occ, a, c, s, physics::HitKind::kAgent, j);
+          disagreed += ref != (sees(sim, e, a, j) != 0);
+          ++compared;
+        }
+        for (int b = 0; b < world.num_boxes(); ++b) {
+          const bool ref = physics::visible(occ, a, c, s, physics::HitKind::kBox, b);
+          disagreed += ref != (sim.state().vis_boxes[(size_t(e) * L.max_agents + a) * L.max_boxes + b] != 0);
+          ++compared;
+        }
+        std::array<double, physics::kLidarRays> lidar{};
+        physics::lidar(occ, a, lidar);
+        for (int r = 0; r < physics::kLidarRays; ++r) {
+          EXPECT_NEAR(sim.state().lidar[(size_t(e) * L.max_agents + a) * Layout::kLidar + r], lidar[r], 2e-4);
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 3000);
+  EXPECT_LE(disagreed, compared / 200) << disagreed << " of " << compared << " visibility pairs differ";
 }
 
 // Every field of the state after `steps` seeded random steps.
