@@ -60,6 +60,24 @@ struct GeomInfo {
   double friction;
 };
 
+// Extra, deterministic work per env step in builds configured with HNS_INJECT_STEP_WORK > 0: the perf
+// gate's tests use such a build as a known slowdown. A no-op otherwise.
+#ifndef HNS_INJECT_STEP_WORK
+#define HNS_INJECT_STEP_WORK 0
+#endif
+void inject_step_work() {
+  if constexpr (HNS_INJECT_STEP_WORK > 0) {
+    static volatile uint64_t sink = 0;
+    uint64_t x = sink | 1;
+    for (long i = 0; i < HNS_INJECT_STEP_WORK; ++i) {
+      x ^= x << 13;
+      x ^= x >> 7;
+      x ^= x << 17;
+    }
+    sink = x;
+  }
+}
+
 double wrap_angle(double a) {
   return std::remainder(a, 2.0 * M_PI);
 }
@@ -410,6 +428,7 @@ void World::step(std::span<const AgentAction> actions) {
   }
   for (int s = 0; s < config_.physics.substeps; ++s) substep(forces_);
   ++t_;
+  inject_step_work();
   check_stability();
   if (config_.compute_visibility) update_visibility();
 }
