@@ -5,7 +5,8 @@ set -euo pipefail
 
 HNS_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 HNS_PACKAGES=(build-essential cmake pkg-config libode-dev libeigen3-dev libxsimd-dev libtbb-dev
-              libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev)
+              libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev
+              python3 git)
 
 hns_install_packages() {
   local missing=()

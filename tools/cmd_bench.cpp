@@ -1,7 +1,7 @@
 // `hns bench`: throughput of the batch simulator with seeded random actions.
 //
 //   hns bench --scene quadrant|full|empty [--envs N] [--steps S] [--threads T] [--seed S]
-//             [--hiders H --seekers K --boxes B --ramps R] [--substeps N] [--json FILE]
+//             [--hiders H --seekers K --boxes B --ramps R] [--substeps N] [--json FILE] [--profile FILE]
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -29,7 +29,27 @@ struct BenchOptions {
   uint64_t seed = 1;
   std::optional<int> hiders, seekers, boxes, ramps, substeps;
   std::string json;
+  std::string profile;
 };
+
+constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep profiled runs short
+
+// Writes the recorded phases as a Chrome trace (chrome://tracing, Perfetto): one row per thread, one box
+// per env and phase.
+void write_profile(const std::string& path, const std::vector<hns::batch::TraceEvent>& events) {
+  nlohmann::json trace = nlohmann::json::array();
+  for (const hns::batch::TraceEvent& ev : events) {
+    trace.push_back({{"name", ev.phase},
+                     {"cat", "batch"},
+                     {"ph", "X"},
+                     {"ts", ev.begin_ns / 1000.0},
+                     {"dur", (ev.end_ns - ev.begin_ns) / 1000.0},
+                     {"pid", 1},
+                     {"tid", ev.thread},
+                     {"args", {{"env", ev.env}}}});
+  }
+  write_atomically(path, nlohmann::json{{"traceEvents", trace}, {"displayTimeUnit", "ms"}}.dump() + "\n");
+}
 
 // Throughput of the batch simulator with seeded uniformly random actions: env-steps/s, agent-steps/s and
 // the thread time per phase.
@@ -43,10 +63,18 @@ int run_bench(const BenchOptions& opt) {
   config.seed = opt.seed;
   config.validate();
 
+  const int64_t profile_events = int64_t(opt.envs) * opt.steps * 4;
+  if (!opt.profile.empty() && profile_events > kMaxProfileEvents) {
+    throw phys::ConfigError("profile = " + opt.profile + " with " + std::to_string(opt.envs) + " envs x " +
+                            std::to_string(opt.steps) +
+                            " steps is invalid: a profiled run may record at most " +
+                            std::to_string(kMaxProfileEvents / 4) + " env-steps; use fewer --steps");
+  }
   std::printf("hns bench: scene %s, %d envs x %d steps, %d thread%s, %d substeps\n", opt.scene.c_str(),
               opt.envs, opt.steps, opt.threads, opt.threads == 1 ? "" : "s", config.world.physics.substeps);
   std::fflush(stdout);
   hns::batch::BatchSim sim(config);
+  sim.set_tracing(!opt.profile.empty());
   const int max_agents = sim.layout().max_agents;
   std::vector<phys::AgentAction> actions(size_t(opt.envs) * max_agents);
   phys::Rng rng(opt.seed, 0xAC7105, 0);
@@ -110,6 +138,10 @@ int run_bench(const BenchOptions& opt) {
     write_atomically(opt.json, j.dump(2) + "\n");
     std::printf("  wrote %s\n", opt.json.c_str());
   }
+  if (!opt.profile.empty()) {
+    write_profile(opt.profile, sim.take_trace());
+    std::printf("  wrote %s (open it in chrome://tracing or ui.perfetto.dev)\n", opt.profile.c_str());
+  }
   return 0;
 }
 
@@ -137,6 +169,8 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--ramps", opt->ramps, "Fix the ramp count")->check(CLI::Range(0, 16));
   cmd->add_option("--substeps", opt->substeps, "Physics substeps per env step")->check(CLI::Range(1, 200));
   cmd->add_option("--json", opt->json, "Write the figures as JSON to this file");
+  cmd->add_option("--profile", opt->profile,
+                  "Write a per-phase Chrome trace (JSON) of a short run to this file");
   commands.push_back({cmd, [opt] { return run_bench(*opt); }});
 }
 

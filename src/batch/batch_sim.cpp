@@ -24,13 +24,6 @@ int round_up(int n, int m) {
   return (n + m - 1) / m * m;
 }
 
-int64_t elapsed_ns(Clock::time_point& since) {
-  const Clock::time_point now = Clock::now();
-  const int64_t ns = std::chrono::duration_cast<std::chrono::nanoseconds>(now - since).count();
-  since = now;
-  return ns;
-}
-
 // Most wall pieces a scene of this config can have (each interior wall splits in two at its door).
 int max_walls(const physics::SceneConfig& scene) {
   switch (scene.layout) {
@@ -65,6 +58,7 @@ struct BatchSim::EnvScratch {
   EpisodeStats stats;
   int64_t unstable_resets = 0;
   int64_t ns_physics = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
+  std::vector<TraceEvent> trace;  // filled only while tracing
 };
 
 void BatchConfig::validate() const {
@@ -87,7 +81,7 @@ void BatchState::allocate(const Layout& L, int num_envs) {
 #undef HNS_ALLOCATE_FIELD
 }
 
-BatchSim::BatchSim(const BatchConfig& config) : config_(config) {
+BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chrono::steady_clock::now()) {
   config_.validate();
   config_.world.compute_visibility = false;  // the batch's SIMD vision fills it
   const physics::SceneConfig& scene = config_.world.scene;
@@ -146,29 +140,54 @@ void BatchSim::step(std::span<const AgentAction> actions) {
 
 void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int end) {
   const int A = layout_.max_agents;
+  const int thread = tracing_ ? std::max(0, tbb::this_task_arena::current_thread_index()) : 0;
   for (int e = begin; e < end; ++e) {
     EnvScratch& sc = scratch_[e];
     sc.finished = false;
     physics::World& world = *worlds_[e];
-    Clock::time_point t = Clock::now();
+    // Adds the time since the last mark to a phase's counter (and, when tracing, records an event).
+    Clock::time_point mark = Clock::now();
+    auto phase_done = [&](const char* name, int64_t& counter) {
+      const Clock::time_point now = Clock::now();
+      counter += std::chrono::duration_cast<std::chrono::nanoseconds>(now - mark).count();
+      if (tracing_) {
+        sc.trace.push_back({name, std::chrono::duration_cast<std::chrono::nanoseconds>(mark - epoch_).count(),
+                            std::chrono::duration_cast<std::chrono::nanoseconds>(now - epoch_).count(),
+                            thread, e});
+      }
+      mark = now;
+    };
     world.step(actions.subspan(size_t(e) * A, size_t(world.num_agents())));
-    sc.ns_physics += elapsed_ns(t);
+    phase_done("physics", sc.ns_physics);
     if (world.unstable()) {
       // Numerical trouble stays in this env: drop the episode, start a new one.
       ++sc.unstable_resets;
       std::fill_n(state_.reward.data() + size_t(e) * A, A, 0.0f);
       end_episode_env(e, true);
-      sc.ns_rewards += elapsed_ns(t);
+      phase_done("rewards+resets", sc.ns_rewards);
     } else {
       refresh_env(e);
-      sc.ns_perception += elapsed_ns(t);
+      phase_done("vision+lidar", sc.ns_perception);
       rewards_env(e);
       if (state_.done[e] != 0) end_episode_env(e, false);
-      sc.ns_rewards += elapsed_ns(t);
+      phase_done("rewards+resets", sc.ns_rewards);
     }
     observe_env(e);
-    sc.ns_observations += elapsed_ns(t);
+    phase_done("observations", sc.ns_observations);
   }
+}
+
+void BatchSim::set_tracing(bool on) {
+  tracing_ = on;
+}
+
+std::vector<TraceEvent> BatchSim::take_trace() {
+  std::vector<TraceEvent> all;
+  for (EnvScratch& sc : scratch_) {
+    all.insert(all.end(), sc.trace.begin(), sc.trace.end());
+    sc.trace.clear();
+  }
+  return all;
 }
 
 void BatchSim::collect_finished() {

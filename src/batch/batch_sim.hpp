@@ -7,6 +7,7 @@
 //   -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
 #pragma once
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -163,6 +164,15 @@ struct PhaseTimes {
   double rewards = 0;       // rewards, statistics, auto-resets
 };
 
+// One phase of one env's step, for profiles (Chrome trace viewer). Times in ns since the BatchSim was built.
+struct TraceEvent {
+  const char* phase;  // "physics", "vision+lidar", "rewards+resets", "observations"
+  int64_t begin_ns;
+  int64_t end_ns;
+  int thread;  // TBB thread index within the arena
+  int env;
+};
+
 class BatchSim {
  public:
   explicit BatchSim(const BatchConfig& config);
@@ -189,6 +199,10 @@ class BatchSim {
   int64_t unstable_resets() const;
   const PhaseTimes& phase_times() const { return phase_times_; }
   void reset_timers() { phase_times_ = {}; }
+  // While on, every step records one TraceEvent per env and phase (allocates: for short profiled runs).
+  void set_tracing(bool on);
+  // The events recorded since the last call, in env order.
+  std::vector<TraceEvent> take_trace();
   // Env e's occluders as the ray kernel sees them (walls, boxes, ramps, agents).
   ShapesView shapes(int env) const;
   // The underlying world of env e (read-only; tests and tools).
@@ -218,6 +232,8 @@ class BatchSim {
   std::vector<EnvScratch> scratch_;  // per env: finished-episode record, timers, counters
   std::vector<EpisodeStats> finished_;
   PhaseTimes phase_times_;
+  bool tracing_ = false;
+  std::chrono::steady_clock::time_point epoch_;
 };
 
 }  // namespace hns::batch

@@ -42,6 +42,15 @@ else
   failed=$((failed + 1))
   echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
 fi
+# A profiled run writes a Chrome trace with one event per env, step and phase.
+if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
+   grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 40 ]; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: bench --profile run"; cat "$tmp/log"
+fi
+expect_fail 2 "profile" bench --envs 100000 --steps 1000 --profile "$tmp/huge.json"
 # An unwritable JSON path fails with status 1 and says so.
 expect_fail 1 "cannot write" bench --envs 1 --steps 1 --json "$tmp/missing-dir/out.json"
 

@@ -1,0 +1,84 @@
+#!/usr/bin/env python3
+"""The perf gate's statistics on synthetic inputs (tools/perf-gate)."""
+import importlib.machinery
+import importlib.util
+import os
+import sys
+import unittest
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+GATE = os.path.join(HERE, "..", "..", "tools", "perf-gate")
+loader = importlib.machinery.SourceFileLoader("perf_gate", GATE)
+spec = importlib.util.spec_from_loader("perf_gate", loader)
+gate = importlib.util.module_from_spec(spec)
+loader.exec_module(gate)
+
+
+def runs(times_per_pair):
+    """[{name: t}, ...] from a list of per-pair times for one benchmark named 'bm'."""
+    return [{"bm": t} for t in times_per_pair]
+
+
+class GateStatistics(unittest.TestCase):
+    def verdict(self, base, cur, threshold=0.05):
+        rows = gate.compare(runs(base), runs(cur), threshold)
+        self.assertEqual(len(rows), 1)
+        return rows[0]
+
+    def test_ten_percent_slowdown_with_low_noise_fails(self):
+        base = [100.0, 101.0, 99.5, 100.5, 100.2]
+        cur = [b * 1.10 * f for b, f in zip(base, [1.0, 1.005, 0.997, 1.002, 0.999])]
+        row = self.verdict(base, cur)
+        self.assertEqual(row["verdict"], "regression")
+        self.assertAlmostEqual(row["ratio"], 1.10, delta=0.01)
+
+    def test_two_percent_change_passes(self):
+        base = [100.0, 101.0, 99.5, 100.5, 100.2]
+        self.assertEqual(self.verdict(base, [b * 1.02 for b in base])["verdict"], "ok")
+        self.assertEqual(self.verdict(base, [b * 0.98 for b in base])["verdict"], "ok")
+
+    def test_noisy_pairs_covering_one_pass_with_warning(self):
+        base = [100.0] * 5
+        cur = [80.0, 130.0, 110.0, 95.0, 125.0]  # median ratio 1.10, pairs on both sides of 1.0
+        row = self.verdict(base, cur)
+        self.assertEqual(row["verdict"], "warning")
+        self.assertIn("noise", row["note"])
+
+    def test_clear_speedup_is_reported_faster(self):
+        base = [100.0, 100.5, 99.8]
+        self.assertEqual(self.verdict(base, [b * 0.8 for b in base])["verdict"], "faster")
+
+    def test_missing_and_renamed_benchmarks_are_reported_not_crashed_on(self):
+        base = [{"old_name": 10.0, "kept": 5.0}] * 3
+        cur = [{"new_name": 10.0, "kept": 5.0}] * 3
+        rows = {r["benchmark"]: r for r in gate.compare(base, cur, 0.05)}
+        self.assertEqual(rows["old_name"]["verdict"], "missing")
+        self.assertEqual(rows["new_name"]["verdict"], "new")
+        self.assertEqual(rows["kept"]["verdict"], "ok")
+        text = gate.table_text(list(rows.values()))
+        self.assertIn("missing in the current tree", text)
+
+    def test_a_benchmark_absent_from_some_pairs_uses_the_pairs_it_has(self):
+        base = [{"bm": 100.0}, {}, {"bm": 100.0}]
+        cur = [{"bm": 120.0}, {"bm": 120.0}, {"bm": 121.0}]
+        row = gate.compare(base, cur, 0.05)[0]
+        self.assertEqual(row["pairs"], 2)
+        self.assertEqual(row["verdict"], "regression")
+
+    def test_instruction_counts(self):
+        self.assertEqual(gate.judge_instructions(1000, 1100, 0.025)["verdict"], "regression")
+        self.assertEqual(gate.judge_instructions(1000, 1001, 0.025)["verdict"], "ok")
+        self.assertIsNone(gate.judge_instructions(None, 1000, 0.025))
+
+    def test_bad_usage_exits_2(self):
+        self.assertEqual(gate.main(["--pairs", "0"]), 2)
+        self.assertEqual(gate.main(["--threshold", "2"]), 2)
+        self.assertEqual(gate.main(["--suite", "no-colon"]), 2)
+        self.assertEqual(gate.main(["--baseline-src", "/nonexistent/folder"]), 2)
+
+
+if __name__ == "__main__":
+    result = unittest.main(exit=False, verbosity=1).result
+    failed = len(result.failures) + len(result.errors)
+    print(f"{result.testsRun - failed} passed, {failed} failed")
+    sys.exit(1 if failed else 0)
