@@ -99,14 +99,14 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
     worlds_.push_back(std::make_unique<physics::World>(config_.world, config_.seed, uint64_t(e)));
   }
   scratch_.resize(config_.num_envs);
+  arena_ = std::make_unique<tbb::task_arena>(config_.threads);
   reset();
 }
 
 BatchSim::~BatchSim() = default;
 
 void BatchSim::reset() {
-  tbb::task_arena arena(config_.threads);
-  arena.execute([&] {
+  arena_->execute([&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
         [&](const tbb::blocked_range<int>& r) {
@@ -128,8 +128,7 @@ void BatchSim::step(std::span<const AgentAction> actions) {
         "BatchSim::step: got " + std::to_string(actions.size()) + " actions, expected " +
         std::to_string(size_t(config_.num_envs) * layout_.max_agents) + " (envs x max agents)");
   }
-  tbb::task_arena arena(config_.threads);
-  arena.execute([&] {
+  arena_->execute([&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
         [&](const tbb::blocked_range<int>& r) { step_range(actions, r.begin(), r.end()); },

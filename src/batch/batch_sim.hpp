@@ -7,6 +7,8 @@
 //   -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
 #pragma once
 
+#include <tbb/task_arena.h>
+
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -233,6 +235,7 @@ class BatchSim {
   std::vector<EpisodeStats> finished_;
   PhaseTimes phase_times_;
   bool tracing_ = false;
+  std::unique_ptr<tbb::task_arena> arena_;  // config.threads workers, reused by every step
   std::chrono::steady_clock::time_point epoch_;
 };
 
