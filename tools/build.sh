@@ -1,28 +1,49 @@
 #!/usr/bin/env bash
-# Shared by tools/run and tools/test: installs missing Debian packages, then configures and
-# builds Release into build/ (library, CLI, tests and benchmarks). Sourced, not run directly.
+# Shared by tools/run and tools/test: installs missing Debian packages, then configures and builds Release
+# into build/ (library, CLI, tests and benchmarks). Sourced, not run directly.
 set -euo pipefail
 
 HNS_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 HNS_PACKAGES=(build-essential cmake pkg-config libode-dev libeigen3-dev libxsimd-dev libtbb-dev
               libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev
               python3 git)
+# Optional test-only packages: headless Chromium for the replay page tests. If they cannot be installed
+# (no network, no root), the tests that need them report themselves skipped; the build goes on.
+HNS_TEST_PACKAGES=(chromium)
 
-hns_install_packages() {
+# hns_apt_install required|optional PACKAGE...: installs the packages that are missing. A failure is fatal
+# for required packages and a warning for optional ones.
+hns_apt_install() {
+  local need="$1"
+  shift
   local missing=()
-  for p in "${HNS_PACKAGES[@]}"; do
+  for p in "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   [ ${#missing[@]} -eq 0 ] && return 0
-  echo "hns: installing missing packages: ${missing[*]}"
+  echo "hns: installing missing $need packages: ${missing[*]}"
   local sudo=""
   if [ "$(id -u)" -ne 0 ]; then
-    command -v sudo >/dev/null || { echo "hns: need root or sudo to install: ${missing[*]}" >&2; exit 1; }
+    if ! command -v sudo >/dev/null; then
+      echo "hns: need root or sudo to install: ${missing[*]}" >&2
+      [ "$need" = optional ] && return 0
+      exit 1
+    fi
     sudo="sudo"
   fi
-  $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq
-  $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  if ! { $sudo env DEBIAN_FRONTEND=noninteractive apt-get update -qq &&
+         $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${missing[@]}"; }; then
+    if [ "$need" = optional ]; then
+      echo "hns: warning: could not install ${missing[*]}; the tests that need them will be skipped" >&2
+      return 0
+    fi
+    echo "hns: could not install ${missing[*]}" >&2
+    exit 1
+  fi
 }
+
+hns_install_packages() { hns_apt_install required "${HNS_PACKAGES[@]}"; }
+hns_install_test_packages() { hns_apt_install optional "${HNS_TEST_PACKAGES[@]}"; }
 
 hns_build() {
   local jobs

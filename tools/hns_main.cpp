@@ -13,6 +13,8 @@ int main(int argc, char** argv) {
   app.require_subcommand(1);
   std::vector<hns::tools::Command> commands;
   hns::tools::add_bench_command(app, commands);
+  hns::tools::add_play_command(app, commands);
+  hns::tools::add_replay_command(app, commands);
 
   try {
     app.parse(argc, argv);

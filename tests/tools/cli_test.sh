@@ -54,5 +54,39 @@ expect_fail 2 "profile" bench --envs 100000 --steps 1000 --profile "$tmp/huge.js
 # An unwritable JSON path fails with status 1 and says so.
 expect_fail 1 "cannot write" bench --envs 1 --steps 1 --json "$tmp/missing-dir/out.json"
 
+# play / replay: bad flags and files exit 2 naming the problem; nothing is half-written.
+expect_fail 2 "scene" play --scene nowhere --out "$tmp/x.traj"
+expect_fail 2 "episodes" play --episodes 0 --out "$tmp/x.traj"
+expect_fail 2 "envs" play --envs 0 --out "$tmp/x.traj"
+expect_fail 2 "out" play --scene quadrant
+expect_fail 2 "hiders" play --hiders 0 --seekers 0 --out "$tmp/x.traj"
+expect_fail 2 "checkpoints need the trainer \(not built yet\)" play --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
+expect_fail 2 "excludes" play --random --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
+expect_fail 1 "cannot write" play --out "$tmp/missing-dir/x.traj"
+expect_fail 2 "html" replay "$tmp/x.traj"
+expect_fail 2 "cannot read" replay "$tmp/nothing.traj" --html "$tmp/x.html"
+printf 'not a trajectory at all' >"$tmp/garbage.traj"
+expect_fail 2 "bad trajectory file.*not an hns trajectory" replay "$tmp/garbage.traj" --html "$tmp/x.html"
+if [ -e "$tmp/x.traj" ] || [ -e "$tmp/x.html" ] || [ -e "$tmp/x.html.tmp" ]; then
+  failed=$((failed + 1))
+  echo "FAIL: a failed play/replay left a file behind"; ls -la "$tmp"
+else
+  passed=$((passed + 1))
+fi
+
+# A real recording replays into one self-contained page; a truncated copy is refused with the reason.
+if "$hns" play --scene quadrant --episodes 2 --envs 2 --seed 4 --out "$tmp/q.traj" >"$tmp/log" 2>&1 &&
+   [ ! -e "$tmp/q.traj.tmp" ] && grep -q "env 1 episode 0" "$tmp/log" &&
+   "$hns" replay "$tmp/q.traj" --html "$tmp/q.html" >>"$tmp/log" 2>&1 &&
+   [ ! -e "$tmp/q.html.tmp" ] && grep -q '<canvas id="view"' "$tmp/q.html" && ! grep -q 'https\?://' "$tmp/q.html"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: play + replay run"; cat "$tmp/log"
+fi
+head -c 5000 "$tmp/q.traj" >"$tmp/cut.traj"
+expect_fail 2 "episode 0.*truncated" replay "$tmp/cut.traj" --html "$tmp/cut.html"
+[ -e "$tmp/cut.html" ] && { failed=$((failed + 1)); echo "FAIL: replay of a truncated file wrote a page"; }
+
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

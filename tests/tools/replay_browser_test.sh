@@ -1,0 +1,120 @@
+#!/usr/bin/env bash
+# Replay pages in a real browser (headless Chromium): the canvas draws the recorded agents, boxes and ramps,
+# scrubbing (#frame=N) changes the drawn frame, a 240-step full-scene episode draws quickly, and screenshots
+# are saved. Exits 77 (ctest: skipped) with a message where Chromium is not installed; tools/test installs it.
+# Usage: replay_browser_test.sh path/to/hns SCREENSHOT_DIR
+set -u
+hns="$1"
+shots="$2"
+browser=""
+for b in chromium chromium-browser google-chrome; do
+  if command -v "$b" >/dev/null 2>&1; then browser="$(command -v "$b")"; break; fi
+done
+if [ -z "$browser" ]; then
+  echo "SKIP: no headless Chromium found (install the Debian package 'chromium'; tools/test does it)"
+  exit 77
+fi
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+mkdir -p "$shots"
+passed=0
+failed=0
+pass() { passed=$((passed + 1)); }
+fail() { failed=$((failed + 1)); echo "FAIL: $*"; }
+
+# These flags keep Chromium quiet on a machine without network: no background traffic, no GPU, no sandbox.
+chrome() {
+  timeout 90 "$browser" --headless --no-sandbox --disable-gpu --disable-quic --no-first-run \
+    --disable-background-networking --disable-component-update --disable-sync --hide-scrollbars \
+    --user-data-dir="$(mktemp -d -p "$tmp")" "$@" 2>>"$tmp/chromium.log"
+}
+# status PAGE HASH: the page's <output id="hns-status"> element after load.
+status() { chrome --dump-dom "file://$1#$2" | grep -o '<output id="hns-status"[^>]*>'; }
+# attr NAME STATUS: one data-* attribute of a status element.
+attr() { grep -o "data-$1=\"[^\"]*\"" <<<"$2" | head -n1 | sed 's/.*="\(.*\)"/\1/'; }
+
+# expect_drawn LABEL PAGE HASH AGENTS BOXES RAMPS: the page is ready and drew exactly these counts.
+expect_drawn() {
+  local label="$1" page="$2" hash="$3" s
+  s="$(status "$page" "$hash")"
+  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr drawn-agents "$s")" = "$4" ] &&
+     [ "$(attr drawn-boxes "$s")" = "$5" ] && [ "$(attr drawn-ramps "$s")" = "$6" ]; then
+    pass
+  else
+    fail "$label: expected $4 agents, $5 boxes, $6 ramps drawn; status: ${s:-<none>}"
+  fi
+}
+
+# Recordings with fixed counts, so the expected drawing is known.
+if ! "$hns" play --scene quadrant --episodes 2 --envs 2 --seed 7 --out "$tmp/q.traj" >"$tmp/log" 2>&1 ||
+   ! "$hns" replay "$tmp/q.traj" --html "$tmp/q.html" >>"$tmp/log" 2>&1 ||
+   ! "$hns" play --scene full --hiders 2 --seekers 3 --boxes 6 --ramps 2 --seed 3 --out "$tmp/f.traj" >>"$tmp/log" 2>&1 ||
+   ! "$hns" replay "$tmp/f.traj" --html "$tmp/f.html" >>"$tmp/log" 2>&1; then
+  cat "$tmp/log"
+  echo "FAIL: could not record and render the test pages"
+  exit 1
+fi
+
+expect_drawn "quadrant frame 0" "$tmp/q.html" "frame=0" 4 2 1
+expect_drawn "quadrant episode 1" "$tmp/q.html" "episode=1&frame=50" 4 2 1
+expect_drawn "full frame 200" "$tmp/f.html" "frame=200&lidar=1" 5 6 2
+
+# Scrubbing: another frame draws other data and other pixels; the same frame twice draws the same.
+a="$(status "$tmp/f.html" "frame=10&probe=1")"
+b="$(status "$tmp/f.html" "frame=150&probe=1")"
+c="$(status "$tmp/f.html" "frame=150&probe=1")"
+if [ "$(attr frame "$b")" = "150" ] && [ -n "$(attr frame-hash "$a")" ] && [ -n "$(attr pixel-hash "$a")" ] &&
+   [ "$(attr frame-hash "$a")" != "$(attr frame-hash "$b")" ] &&
+   [ "$(attr pixel-hash "$a")" != "$(attr pixel-hash "$b")" ] &&
+   [ "$(attr pixel-hash "$b")" = "$(attr pixel-hash "$c")" ]; then
+  pass
+else
+  fail "scrubbing: frame 10 -> $a; frame 150 -> $b; again -> $c"
+fi
+# Frames past the end clamp to the last one (frame 240 of 241).
+s="$(status "$tmp/f.html" "frame=9999")"
+[ "$(attr frame "$s")" = "240" ] && [ "$(attr frames "$s")" = "241" ] && pass || fail "clamped frame: $s"
+# Lidar on demand: 30 rays per agent when asked, none by default.
+s="$(status "$tmp/f.html" "frame=100&lidar=1")"
+[ "$(attr drawn-lidar-rays "$s")" = "150" ] && pass || fail "lidar rays: $s"
+s="$(status "$tmp/f.html" "frame=100")"
+[ "$(attr drawn-lidar-rays "$s")" = "0" ] && pass || fail "lidar off by default: $s"
+
+# Playback (virtual time, so no waiting): 3 s at 2x moves about 80 frames on; at 8x it stops on the last frame.
+played() { chrome --virtual-time-budget="$2" --dump-dom "file://$tmp/f.html#$1" | grep -o '<output id="hns-status"[^>]*>'; }
+s="$(played "play=1&speed=2" 3000)"
+f="$(attr frame "$s")"
+[ -n "$f" ] && [ "$f" -gt 20 ] && [ "$f" -lt 240 ] && pass || fail "playing 3 s at 2x: $s"
+s="$(played "play=1&speed=8" 6000)"
+[ "$(attr frame "$s")" = "240" ] && pass || fail "playing to the end: $s"
+
+# A page whose embedded data is broken says so instead of drawing (hns replay never writes one; hand edits might).
+sed 's|<script id="trajectory" type="application/octet-stream">[^<]*</script>|<script id="trajectory" type="application/octet-stream">SGVsbG8gd29ybGQh</script>|' \
+  "$tmp/q.html" >"$tmp/broken.html"
+s="$(status "$tmp/broken.html" "frame=0")"
+[ "$(attr state "$s")" = "error" ] && grep -q "not an hns trajectory" <<<"$(attr error "$s")" && pass ||
+  fail "broken page: $s"
+
+# Responsiveness: every frame of the 240-step full episode drawn once (reported, not judged: timing is noisy).
+s="$(status "$tmp/f.html" "bench=1&frame=0")"
+if [ -n "$(attr draw-ms-mean "$s")" ]; then
+  pass
+  echo "full scene, 241 frames: $(attr draw-ms-mean "$s") ms per frame on average, $(attr draw-ms-max "$s") ms at most"
+else
+  fail "bench mode: $s"
+fi
+
+# Screenshots for people to look at.
+chrome --window-size=1280,1000 --screenshot="$shots/replay_full.png" "file://$tmp/f.html#frame=150&lidar=1" >/dev/null
+chrome --window-size=1280,1000 --screenshot="$shots/replay_quadrant.png" "file://$tmp/q.html#episode=1&frame=60" >/dev/null
+for png in replay_full.png replay_quadrant.png; do
+  if [ -s "$shots/$png" ] && [ "$(head -c 8 "$shots/$png" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]; then
+    pass
+  else
+    fail "screenshot $png missing or not a PNG"
+  fi
+done
+echo "screenshots: $shots/replay_full.png $shots/replay_quadrant.png"
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]

@@ -1,0 +1,115 @@
+// `hns play`: records whole episodes into a trajectory file for `hns replay` (docs/trajectory-format.md).
+//
+//   hns play --scene quadrant|full|empty [--random | --checkpoint FILE] [--episodes E] [--seed S] [--envs N]
+//            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE
+#include <algorithm>
+#include <cstdio>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "cli.hpp"
+#include "physics/presets.hpp"
+#include "recorder.hpp"
+#include "trajectory.hpp"
+
+namespace hns::tools {
+namespace {
+
+namespace phys = hns::physics;
+
+struct PlayOptions {
+  std::string scene = "quadrant";
+  bool random = false;
+  std::string checkpoint;
+  int episodes = 1;
+  uint64_t seed = 1;
+  int envs = 1;
+  int threads = 1;
+  std::optional<int> hiders, seekers, boxes, ramps;
+  std::string out;
+};
+
+int run_play(const PlayOptions& opt) {
+  if (!opt.checkpoint.empty()) {
+    std::fprintf(stderr,
+                 "hns play: --checkpoint %s: checkpoints need the trainer (not built yet); record random "
+                 "actions with --random\n",
+                 opt.checkpoint.c_str());
+    return 2;
+  }
+  RecordConfig config;
+  config.scene = opt.scene;
+  config.episodes = opt.episodes;
+  config.game.world = phys::world_preset(opt.scene);
+  phys::apply_overrides(config.game.world,
+                        phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
+  // More envs than episodes would only play episodes nobody records.
+  config.game.num_envs = std::min(opt.envs, opt.episodes);
+  config.game.threads = opt.threads;
+  config.game.seed = opt.seed;
+  config.game.validate();
+
+  std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, random actions, seed %llu\n",
+              opt.scene.c_str(), opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon,
+              config.game.num_envs, config.game.num_envs == 1 ? "" : "s",
+              static_cast<unsigned long long>(opt.seed));
+  std::fflush(stdout);
+  TrajectoryFile meta;
+  meta.created_by = "hns play";
+  meta.policy = "random";
+  TrajectoryWriter writer(opt.out, meta, opt.episodes);
+  RandomActions random(opt.seed);
+  const RecordSummary summary = record_episodes(config, random, [&](const TrajectoryEpisode& ep) {
+    writer.add(ep);
+    std::printf(
+        "  env %d episode %d: %d hider%s v %d seeker%s, %d boxes (%d elongated), %d ramp%s, %d frames, "
+        "returns hiders %+.1f seekers %+.1f\n",
+        ep.env, ep.episode, ep.num_hiders, ep.num_hiders == 1 ? "" : "s", ep.num_seekers,
+        ep.num_seekers == 1 ? "" : "s", ep.num_boxes, ep.num_elongated, ep.num_ramps,
+        ep.num_ramps == 1 ? "" : "s", ep.frames, ep.hider_return, ep.seeker_return);
+    std::fflush(stdout);
+  });
+  const uint64_t bytes = writer.finish();
+  if (summary.discarded > 0) {
+    std::printf("  warning: %d episode(s) were cut short by numerical trouble and not recorded\n",
+                summary.discarded);
+  }
+  std::printf("  wrote %s (%.1f KB); view it with: hns replay %s --html replay.html\n", opt.out.c_str(),
+              bytes / 1024.0, opt.out.c_str());
+  return 0;
+}
+
+}  // namespace
+
+void add_play_command(CLI::App& app, std::vector<Command>& commands) {
+  auto opt = std::make_shared<PlayOptions>();
+  CLI::App* cmd =
+      app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
+  cmd->add_option("--scene", opt->scene, "Scene preset")
+      ->check(CLI::IsMember({"quadrant", "full", "empty"}))
+      ->capture_default_str();
+  CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
+  cmd->add_option("--checkpoint", opt->checkpoint, "Act with a trained policy (needs the trainer)")
+      ->excludes(random);
+  cmd->add_option("--episodes", opt->episodes, "Whole episodes to record")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  cmd->add_option("--seed", opt->seed, "Seed of scenes and actions")->capture_default_str();
+  cmd->add_option("--envs", opt->envs, "Envs played side by side")
+      ->check(CLI::Range(1, 4096))
+      ->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "Worker threads")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  cmd->add_option("--hiders", opt->hiders, "Fix the hider count")->check(CLI::Range(0, 32));
+  cmd->add_option("--seekers", opt->seekers, "Fix the seeker count")->check(CLI::Range(0, 32));
+  cmd->add_option("--boxes", opt->boxes, "Fix the box count")->check(CLI::Range(0, 32));
+  cmd->add_option("--ramps", opt->ramps, "Fix the ramp count")->check(CLI::Range(0, 16));
+  cmd->add_option("--out", opt->out, "Trajectory file to write")->required();
+  commands.push_back({cmd, [opt] { return run_play(*opt); }});
+}
+
+}  // namespace hns::tools
