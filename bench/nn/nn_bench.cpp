@@ -1,0 +1,135 @@
+// Policy + value network throughput for both presets, next to a plain Eigen GEMM of the LSTM's shape in the
+// same run (the machine's peak reference). Agent-steps/s are reported as items/s, achieved GFLOP/s as a
+// counter (FLOP counting as in nn/nn_bench.hpp). Arguments: preset (0 = paper, 1 = small), TBB threads.
+//   build-nn/bench/nn/bench_nn --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include "nn/actor_critic.hpp"
+#include "nn/adam.hpp"
+
+#include <benchmark/benchmark.h>
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/parallel_for.h>
+
+#include <memory>
+#include <vector>
+
+namespace hns::nn {
+namespace {
+
+// Random observations shaped like the `full` scene, all entities present, about 60 % seen.
+struct Obs {
+  std::vector<float> self, lidar, agents, boxes, ramps, seen_a, seen_b, seen_r;
+  Obs(const ObsShape& s, int rows) {
+    InitRng rng(7, 0);
+    auto fill = [&](std::vector<float>& v, size_t n, double lo, double hi) {
+      v.resize(n);
+      for (auto& x : v) x = static_cast<float>(lo + (hi - lo) * rng.uniform());
+    };
+    auto mask = [&](std::vector<float>& v, size_t n) {
+      v.resize(n);
+      for (auto& x : v) x = rng.uniform() < 0.6 ? 1.0f : 0.0f;
+    };
+    const size_t r = rows;
+    fill(self, r * s.self_features, -3, 3);
+    fill(lidar, r * s.lidar_rays, 0, 6);
+    fill(agents, r * s.num_other_agents() * s.agent_features, -3, 3);
+    fill(boxes, r * s.max_boxes * s.box_features, -3, 3);
+    fill(ramps, r * s.max_ramps * s.ramp_features, -3, 3);
+    mask(seen_a, r * s.num_other_agents());
+    mask(seen_b, r * s.max_boxes);
+    mask(seen_r, r * s.max_ramps);
+  }
+  ObsBatch batch() const {
+    ObsBatch b;
+    b.self = self.data();
+    b.lidar = lidar.data();
+    b.agents = agents.data();
+    b.boxes = boxes.data();
+    b.ramps = ramps.data();
+    b.agents_seen = seen_a.data();
+    b.boxes_seen = seen_b.data();
+    b.ramps_seen = seen_r.data();
+    return b;
+  }
+};
+
+void set_counters(benchmark::State& state, double agent_steps, double flops) {
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations() * agent_steps));
+  state.counters["GFLOP/s"] = benchmark::Counter(flops * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+// One inference step (policy + value forward, sampling) for 1024 agents.
+void BM_NnInfer(benchmark::State& state, const char* preset) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, state.range(0));
+  const NetConfig cfg = net_preset(preset);
+  ActorCritic ac(cfg);
+  ac.params().init(1);
+  const int agents = 1024;
+  const Obs obs(cfg.obs, agents);
+  const ObsNormalizer norm(cfg.obs);
+  std::vector<float> ps(static_cast<size_t>(agents) * ac.state_width()), vs(ps.size());
+  std::vector<float> uniforms(static_cast<size_t>(agents) * ac.heads().num_heads(), 0.5f);
+  std::vector<int32_t> actions(uniforms.size());
+  std::vector<float> logp(agents), value(agents);
+  for (auto _ : state)
+    ac.act(norm.view(), obs.batch(), agents, ps.data(), vs.data(), uniforms.data(),
+           {actions.data(), logp.data(), value.data(), nullptr});
+  set_counters(state, agents, ac.forward_flops(agents));
+}
+
+// Forward + backward + Adam over a minibatch of 256 BPTT chunks of 10 steps.
+void BM_NnTrain(benchmark::State& state, const char* preset) {
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, state.range(0));
+  const NetConfig cfg = net_preset(preset);
+  ActorCritic ac(cfg);
+  ac.params().init(1);
+  const int seqs = 256, steps = 10, rows = seqs * steps;
+  const Obs obs(cfg.obs, rows);
+  const ObsNormalizer norm(cfg.obs);
+  const int nl = ac.heads().num_logits();
+  // A fixed linear loss: the backward pass costs the same whatever the loss.
+  const LossFn loss = [nl](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+    for (int r = 0; r < out.rows; ++r) {
+      for (int k = 0; k < nl; ++k) g.d_logits.at(r, k) = 1e-4f * static_cast<float>(k % 3 - 1);
+      g.d_value[r] = 1e-4f;
+    }
+  };
+  Adam adam(ac.params().layout(), {});
+  std::vector<double> stats;
+  for (auto _ : state) {
+    ac.forward_backward(norm.view(), obs.batch(), seqs, steps, nullptr, nullptr, loss, stats,
+                        ac.params().grads());
+    adam.step(ac.params().values(), ac.params().grads());
+  }
+  set_counters(state, rows, 3.0 * ac.forward_flops(rows));
+}
+
+// Eigen float GEMM of the LSTM input product's training shape, one independent product per thread.
+void BM_EigenGemm(benchmark::State& state) {
+  const int threads = static_cast<int>(state.range(0));
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  const int m = 2560, k = 256, n = 1024;
+  std::vector<RowMat> a(threads), b(threads), c(threads);
+  for (int t = 0; t < threads; ++t) {
+    a[t] = RowMat::Random(m, k);
+    b[t] = RowMat::Random(k, n);
+    c[t] = RowMat::Zero(m, n);
+  }
+  for (auto _ : state) {
+    tbb::parallel_for(0, threads, [&](int t) { c[t].noalias() = a[t] * b[t]; });
+    benchmark::DoNotOptimize(c[0].data());
+  }
+  state.counters["GFLOP/s"] =
+      benchmark::Counter(2.0 * m * k * n * threads * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+BENCHMARK(BM_EigenGemm)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_NnInfer, paper, "paper")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_NnInfer, small, "small")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_NnTrain, paper, "paper")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_NnTrain, small, "small")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+}  // namespace
+}  // namespace hns::nn
+
+BENCHMARK_MAIN();

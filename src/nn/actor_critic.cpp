@@ -1,0 +1,175 @@
+#include "nn/actor_critic.hpp"
+
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/parallel_for.h>
+
+#include <algorithm>
+#include <cstring>
+
+namespace hns::nn {
+namespace {
+
+const float* offset(const float* p, size_t first, size_t per_row) {
+  return p == nullptr ? nullptr : p + first * per_row;
+}
+
+// The layout of both networks: policy slices first, then value slices.
+ParamLayout build_layout(const NetConfig& cfg, EntityNet& policy, EntityNet& value) {
+  ParamLayout layout;
+  policy = EntityNet(cfg, NetHead::kPolicy, layout, "policy");
+  value = EntityNet(cfg, NetHead::kValue, layout, "value");
+  return layout;
+}
+
+}  // namespace
+
+ObsBatch ObsBatch::rows_from(size_t first, const ObsShape& s) const {
+  const size_t na = s.num_other_agents();
+  ObsBatch b;
+  b.self = offset(self, first, s.self_features);
+  b.lidar = offset(lidar, first, s.lidar_rays);
+  b.agents = offset(agents, first, na * s.agent_features);
+  b.boxes = offset(boxes, first, static_cast<size_t>(s.max_boxes) * s.box_features);
+  b.ramps = offset(ramps, first, static_cast<size_t>(s.max_ramps) * s.ramp_features);
+  b.agents_seen = offset(agents_seen, first, na);
+  b.boxes_seen = offset(boxes_seen, first, s.max_boxes);
+  b.ramps_seen = offset(ramps_seen, first, s.max_ramps);
+  b.agents_present = offset(agents_present, first, na);
+  b.boxes_present = offset(boxes_present, first, s.max_boxes);
+  b.ramps_present = offset(ramps_present, first, s.max_ramps);
+  b.reset = offset(reset, first, 1);
+  return b;
+}
+
+NetInputs ObsBatch::policy_inputs() const {
+  return {self, lidar, agents, boxes, ramps, agents_seen, boxes_seen, ramps_seen, reset};
+}
+
+NetInputs ObsBatch::value_inputs() const {
+  return {self, lidar, agents, boxes, ramps, agents_present, boxes_present, ramps_present, reset};
+}
+
+// Per-thread activations for one chunk shape, and the chunk's output-gradient scratch.
+struct ActorCritic::ThreadWork {
+  int sequences;
+  int steps;
+  EntityNet::Work policy;
+  EntityNet::Work value;
+  FloatBuffer d_logits;  // [rows, num_logits]
+  FloatBuffer d_value;   // [rows]
+  ThreadWork(const ActorCritic& ac, int seqs, int st)
+      : sequences(seqs),
+        steps(st),
+        policy(ac.policy_.make_workspace(seqs, st)),
+        value(ac.value_.make_workspace(seqs, st)),
+        d_logits(static_cast<size_t>(seqs) * st * ac.heads_.num_logits()),
+        d_value(static_cast<size_t>(seqs) * st) {}
+};
+
+ActorCritic::ActorCritic(const NetConfig& cfg, ParallelConfig parallel)
+    : cfg_(cfg), par_(parallel), heads_(cfg.action_heads), params_(build_layout(cfg, policy_, value_)) {
+  HNS_NN_CHECK(par_.infer_chunk_agents > 0 && par_.train_chunk_sequences > 0 && par_.grad_groups > 0,
+               "parallel chunk sizes must be positive");
+}
+
+ActorCritic::~ActorCritic() = default;
+
+ActorCritic::ThreadWork& ActorCritic::local_work(
+    tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>>& ets, int sequences, int steps) const {
+  std::unique_ptr<ThreadWork>& w = ets.local();
+  if (!w || w->sequences != sequences || w->steps != steps)
+    w = std::make_unique<ThreadWork>(*this, sequences, steps);
+  return *w;
+}
+
+void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, float* policy_state,
+                      float* value_state, const float* uniforms, const ActOutputs& out) const {
+  const int chunk = par_.infer_chunk_agents;
+  const int num_chunks = (agents + chunk - 1) / chunk;
+  const int sw = state_width();
+  const int nh = heads_.num_heads();
+  const int nl = heads_.num_logits();
+  const float* p = params_.values();
+  tbb::parallel_for(0, num_chunks, [&](int c) {
+    ThreadWork& w = local_work(infer_work_, chunk, 1);
+    const int first = c * chunk;
+    const int n = std::min(chunk, agents - first);
+    const ObsBatch sub = obs.rows_from(first, cfg_.obs);
+    float* ps = policy_state + static_cast<ptrdiff_t>(first) * sw;
+    float* vs = value_state + static_cast<ptrdiff_t>(first) * sw;
+    policy_.forward(p, norm, sub.policy_inputs(), n, 1, ps, ps, w.policy);
+    value_.forward(p, norm, sub.value_inputs(), n, 1, vs, vs, w.value);
+    const CMat logits = policy_.output(w.policy, n);
+    heads_.sample(logits, uniforms + static_cast<ptrdiff_t>(first) * nh,
+                  out.actions + static_cast<ptrdiff_t>(first) * nh,
+                  out.logp == nullptr ? nullptr : out.logp + first);
+    const CMat v = value_.output(w.value, n);
+    if (out.value != nullptr)
+      for (int i = 0; i < n; ++i) out.value[first + i] = v.at(i, 0);
+    if (out.logits != nullptr)
+      for (int i = 0; i < n; ++i)
+        std::memcpy(out.logits + static_cast<ptrdiff_t>(first + i) * nl, logits.row(i), sizeof(float) * nl);
+  });
+}
+
+void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
+                                   const float* policy_state0, const float* value_state0, const LossFn& loss,
+                                   std::span<double> stats, float* grads_out) {
+  const int chunk = par_.train_chunk_sequences;
+  const int num_chunks = (sequences + chunk - 1) / chunk;
+  const int groups = std::max(1, std::min(par_.grad_groups, num_chunks));
+  const size_t nfloats = params_.buffer_floats();
+  const size_t nstats = stats.size();
+  const int sw = state_width();
+  const int nl = heads_.num_logits();
+  while (group_grads_.size() < static_cast<size_t>(groups)) group_grads_.emplace_back(nfloats);
+  chunk_stats_.assign(static_cast<size_t>(num_chunks) * nstats, 0.0);
+  const float* p = params_.values();
+
+  // Each group: its chunks in order, gradients summed into its own buffer.
+  tbb::parallel_for(0, groups, [&](int g) {
+    ThreadWork& w = local_work(train_work_, chunk, steps);
+    float* gg = group_grads_[g].data();
+    group_grads_[g].fill_zero();
+    const int c_begin = static_cast<int>(static_cast<int64_t>(num_chunks) * g / groups);
+    const int c_end = static_cast<int>(static_cast<int64_t>(num_chunks) * (g + 1) / groups);
+    for (int c = c_begin; c < c_end; ++c) {
+      const int first_seq = c * chunk;
+      const int n = std::min(chunk, sequences - first_seq);
+      const int first_row = first_seq * steps;
+      const int rows = n * steps;
+      const ObsBatch sub = obs.rows_from(first_row, cfg_.obs);
+      const NetInputs pin = sub.policy_inputs();
+      const NetInputs vin = sub.value_inputs();
+      policy_.forward(
+          p, norm, pin, n, steps,
+          policy_state0 == nullptr ? nullptr : policy_state0 + static_cast<ptrdiff_t>(first_seq) * sw,
+          nullptr, w.policy);
+      value_.forward(
+          p, norm, vin, n, steps,
+          value_state0 == nullptr ? nullptr : value_state0 + static_cast<ptrdiff_t>(first_seq) * sw, nullptr,
+          w.value);
+      const ChunkOutputs outs{first_row, rows, policy_.output(w.policy, rows), w.value.bufs().head};
+      const ChunkGrads grads{Mat(w.d_logits.data(), rows, nl), w.d_value.data()};
+      loss(outs, grads, std::span<double>(chunk_stats_.data() + static_cast<size_t>(c) * nstats, nstats));
+      policy_.backward(p, gg, pin, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy);
+      value_.backward(p, gg, vin, n, steps, CMat(w.d_value.data(), rows, 1), w.value);
+    }
+  });
+
+  // Sum the groups in order (each element independently, so any split of the index range gives the same
+  // bits).
+  tbb::parallel_for(tbb::blocked_range<size_t>(0, nfloats, 1 << 14),
+                    [&](const tbb::blocked_range<size_t>& r) {
+                      for (size_t i = r.begin(); i < r.end(); ++i) {
+                        float s = group_grads_[0][i];
+                        for (int g = 1; g < groups; ++g) s += group_grads_[g][i];
+                        grads_out[i] = s;
+                      }
+                    });
+  for (size_t k = 0; k < nstats; ++k) stats[k] = 0.0;
+  for (int c = 0; c < num_chunks; ++c)
+    for (size_t k = 0; k < nstats; ++k) stats[k] += chunk_stats_[static_cast<size_t>(c) * nstats + k];
+}
+
+}  // namespace hns::nn

@@ -1,0 +1,130 @@
+// The policy and the value network together: one flat parameter buffer for both (policy slices "policy/...",
+// value slices "value/..."), batched inference for the rollout, and the deterministic parallel forward +
+// backward of a training minibatch.
+//
+// Determinism (DESIGN.md): work is split into chunks whose sizes come from ParallelConfig, never from the
+// thread count. Inference chunks are independent. Training chunks are assigned to a fixed number of gradient
+// groups; each group sums its chunks' gradients in chunk order into its own buffer, and the groups are summed
+// in group order. So results are bit-identical for any number of TBB threads.
+//
+// Masks (SPEC.md §4.6, §10.3): the policy sees entities through the visibility masks (agents_seen,
+// boxes_seen, ramps_seen); the omniscient value net uses the presence masks (agents_present, boxes_present =
+// the original's mask_ab_obs_spoof, ramps_present), which are all 1 for slots that hold an entity, padding 0.
+// Self is always 1.
+#pragma once
+
+#include "nn/entity_net.hpp"
+
+#include <oneapi/tbb/enumerable_thread_specific.h>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+namespace hns::nn {
+
+// Raw observations of `rows` agent-steps with the masks of both views (caller-owned, all float).
+struct ObsBatch {
+  const float* self = nullptr;            // [rows, self_features]
+  const float* lidar = nullptr;           // [rows, lidar_rays]
+  const float* agents = nullptr;          // [rows, max_agents - 1, agent_features]
+  const float* boxes = nullptr;           // [rows, max_boxes, box_features]
+  const float* ramps = nullptr;           // [rows, max_ramps, ramp_features]
+  const float* agents_seen = nullptr;     // [rows, max_agents - 1] policy masks, 0/1; null = all 1
+  const float* boxes_seen = nullptr;      // [rows, max_boxes]
+  const float* ramps_seen = nullptr;      // [rows, max_ramps]
+  const float* agents_present = nullptr;  // [rows, max_agents - 1] value masks, 0/1; null = all 1
+  const float* boxes_present = nullptr;   // [rows, max_boxes]
+  const float* ramps_present = nullptr;   // [rows, max_ramps]
+  const float* reset = nullptr;  // [rows] 1 where the LSTM states are zeroed before the step; null = never
+
+  // The same batch starting at row `first`.
+  ObsBatch rows_from(size_t first, const ObsShape& shape) const;
+  NetInputs policy_inputs() const;
+  NetInputs value_inputs() const;
+};
+
+// Fixed work partition (independent of the thread count).
+struct ParallelConfig {
+  int infer_chunk_agents = 64;     // agents per inference task
+  int train_chunk_sequences = 16;  // BPTT sequences per training chunk
+  int grad_groups = 16;  // gradient buffers (parallel width of training; memory = groups x parameters)
+};
+
+// What the loss sees of one training chunk: rows [first_row, first_row + rows) of the minibatch.
+struct ChunkOutputs {
+  int first_row = 0;
+  int rows = 0;
+  CMat logits;                   // [rows, num_logits] policy logits
+  const float* value = nullptr;  // [rows] value head (normalised value)
+};
+// What the loss must write for that chunk: the gradient of the minibatch loss w.r.t. the outputs.
+struct ChunkGrads {
+  Mat d_logits;              // [rows, num_logits]
+  float* d_value = nullptr;  // [rows]
+};
+// Called once per chunk, concurrently from several threads: it must only touch its own rows. `stats` (zeroed)
+// receives per-chunk loss statistics, which are summed over chunks in order.
+using LossFn = std::function<void(const ChunkOutputs&, const ChunkGrads&, std::span<double> stats)>;
+
+class ActorCritic {
+ public:
+  explicit ActorCritic(const NetConfig& cfg, ParallelConfig parallel = {});
+  ~ActorCritic();
+  ActorCritic(const ActorCritic&) = delete;
+  ActorCritic& operator=(const ActorCritic&) = delete;
+
+  const NetConfig& config() const { return cfg_; }
+  const ParallelConfig& parallel() const { return par_; }
+  ParamStore& params() { return params_; }
+  const ParamStore& params() const { return params_; }
+  const EntityNet& policy() const { return policy_; }
+  const EntityNet& value() const { return value_; }
+  const CategoricalHeads& heads() const { return heads_; }
+  size_t num_params() const { return params_.layout().num_params(); }
+  // LSTM state floats per agent and per network: (c, h).
+  int state_width() const { return 2 * cfg_.lstm; }
+  // Multiply-add flops of policy + value forward over `rows` agent-steps (backward: twice that).
+  double forward_flops(int rows) const { return policy_.forward_flops(rows) + value_.forward_flops(rows); }
+
+  // Outputs of one inference step ([agents, ...]; logits may be null).
+  struct ActOutputs {
+    int32_t* actions = nullptr;  // [agents, num_heads] sampled actions
+    float* logp = nullptr;       // [agents] their summed log-probability
+    float* value = nullptr;      // [agents] value head (normalised)
+    float* logits = nullptr;     // [agents, num_logits] optional
+  };
+  // One environment step for `agents` agents (steps = 1). policy_state, value_state [agents, state_width()]
+  // are read and replaced by the new states (obs.reset zeroes them first). uniforms [agents, num_heads] in
+  // [0, 1).
+  void act(const ObsNormView& norm, const ObsBatch& obs, int agents, float* policy_state, float* value_state,
+           const float* uniforms, const ActOutputs& out) const;
+
+  // Forward + loss + backward over a minibatch of `sequences` BPTT sequences of `steps` steps (rows
+  // sequence-major, row = b * steps + t). policy_state0, value_state0 [sequences, state_width()]: the states
+  // entering step 0 (null: zeros). Writes the summed gradients to grads_out (a buffer of
+  // params().buffer_floats(); may be params().grads()) and the chunk-summed loss statistics to stats.
+  void forward_backward(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
+                        const float* policy_state0, const float* value_state0, const LossFn& loss,
+                        std::span<double> stats, float* grads_out);
+
+ private:
+  struct ThreadWork;
+  ThreadWork& local_work(tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>>& ets, int sequences,
+                         int steps) const;
+
+  NetConfig cfg_;
+  ParallelConfig par_;
+  EntityNet policy_;  // declared before params_: params_'s initialiser builds both nets' layout
+  EntityNet value_;
+  CategoricalHeads heads_;
+  ParamStore params_;
+  mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> infer_work_;
+  mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> train_work_;
+  std::vector<FloatBuffer> group_grads_;  // [grad_groups][buffer_floats]
+  std::vector<double> chunk_stats_;       // [chunks, stats]
+};
+
+}  // namespace hns::nn

@@ -1,0 +1,242 @@
+#include "nn/entity_net.hpp"
+
+#include "nn/kernels.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+namespace hns::nn {
+
+NetConfig net_preset(std::string_view name) {
+  NetConfig cfg;
+  if (name == "paper") return cfg;
+  if (name == "small") {
+    cfg.embed = 64;
+    cfg.heads = 2;
+    cfg.dense = 128;
+    cfg.lstm = 128;
+    return cfg;
+  }
+  throw std::invalid_argument("unknown model preset '" + std::string(name) + "' (allowed: paper, small)");
+}
+
+std::vector<std::string> net_preset_names() {
+  return {"paper", "small"};
+}
+
+EntityNet::Buffers::Buffers(const NetConfig& c, int outputs_, int sequences_, int steps_)
+    : cfg(c), sequences(sequences_), steps(steps_), outputs(outputs_) {
+  const int rows = sequences * steps;
+  sa = SelfAttention::Buffers(rows, cfg.obs.num_entities(), cfg.embed, cfg.heads);
+  lstm = Lstm::Buffers(sequences, steps, cfg.dense, cfg.lstm);
+}
+
+void EntityNet::Buffers::bind(Arena& arena) {
+  const ObsShape& o = cfg.obs;
+  const size_t rows = static_cast<size_t>(sequences) * steps;
+  const size_t m = o.self_features + static_cast<size_t>(o.lidar_rays) * cfg.lidar_filters;
+  const size_t e = o.num_entities();
+  const size_t d = cfg.embed;
+  const size_t max_count = std::max({o.num_other_agents(), o.max_boxes, o.max_ramps, 1});
+  main = arena.take(rows * m);
+  lidar_n = arena.take(rows * o.lidar_rays);
+  agents_n = arena.take(rows * o.num_other_agents() * o.agent_features);
+  boxes_n = arena.take(rows * o.max_boxes * o.box_features);
+  ramps_n = arena.take(rows * o.max_ramps * o.ramp_features);
+  mask = arena.take(rows * e);
+  x = arena.take(rows * e * d);
+  embed_rows = arena.take(rows * d);
+  embed_ent = arena.take(rows * max_count * d);
+  sa.bind(arena);
+  sa_out = arena.take(rows * e * d);
+  cat = arena.take(rows * 2 * d);
+  cat_n = arena.take(rows * 2 * d);
+  cat_stats = arena.take(rows * 2);
+  dense_a = arena.take(rows * cfg.dense);
+  dense_n = arena.take(rows * cfg.dense);
+  dense_stats = arena.take(rows * 2);
+  lstm.bind(arena);
+  out_n = arena.take(rows * cfg.lstm);
+  out_stats = arena.take(rows * 2);
+  head = arena.take(rows * outputs);
+  d_out_n = arena.take(rows * cfg.lstm);
+  d_h = arena.take(rows * cfg.lstm);
+  d_dense_n = arena.take(rows * cfg.dense);
+  d_cat_n = arena.take(rows * 2 * d);
+  d_cat = arena.take(rows * 2 * d);
+  d_sa_out = arena.take(rows * e * d);
+  d_x = arena.take(rows * e * d);
+  d_main = arena.take(rows * m);
+}
+
+EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, const std::string& prefix)
+    : cfg_(cfg), head_kind_(head) {
+  const ObsShape& o = cfg.obs;
+  HNS_NN_CHECK(o.self_features > 0 && o.lidar_rays > 0 && o.max_agents >= 1, "observation shape is empty");
+  HNS_NN_CHECK(cfg.embed > 0 && cfg.dense > 0 && cfg.lstm > 0, "network widths must be positive");
+  const std::string p = prefix + "/";
+  conv_ = CircConv1d(layout, p + "lidar_conv", o.lidar_rays, 1, cfg.lidar_filters, cfg.lidar_kernel);
+  const int m = main_width();
+  self_embed_ = Dense(layout, p + "embed_self", m, cfg.embed, Activation::kRelu);
+  if (o.num_other_agents() > 0)
+    agents_embed_ = EntityEmbedding(layout, p + "embed_agents", m, o.agent_features, cfg.embed);
+  if (o.max_boxes > 0)
+    boxes_embed_ = EntityEmbedding(layout, p + "embed_boxes", m, o.box_features, cfg.embed);
+  if (o.max_ramps > 0)
+    ramps_embed_ = EntityEmbedding(layout, p + "embed_ramps", m, o.ramp_features, cfg.embed);
+  attention_ = SelfAttention(layout, p + "attention", cfg.embed, cfg.heads, true, true);
+  cat_norm_ = LayerNorm(layout, p + "cat_norm", 2 * cfg.embed);
+  dense_ = Dense(layout, p + "dense", 2 * cfg.embed, cfg.dense, Activation::kRelu);
+  dense_norm_ = LayerNorm(layout, p + "dense_norm", cfg.dense);
+  lstm_ = Lstm(layout, p + "lstm", cfg.dense, cfg.lstm);
+  out_norm_ = LayerNorm(layout, p + "out_norm", cfg.lstm);
+  if (head == NetHead::kPolicy) {
+    int logits = 0;
+    for (int s : cfg.action_heads) logits += s;
+    head_ = Dense(layout, p + "logits", cfg.lstm, logits, Activation::kNone, {Init::kNormc, 0.01f});
+  } else {
+    head_ = Dense(layout, p + "value", cfg.lstm, 1, Activation::kNone);
+  }
+}
+
+double EntityNet::forward_flops(int rows) const {
+  const ObsShape& o = cfg_.obs;
+  double f = conv_.flops(rows) + self_embed_.flops(rows);
+  if (o.num_other_agents() > 0) f += agents_embed_.flops(rows, o.num_other_agents());
+  if (o.max_boxes > 0) f += boxes_embed_.flops(rows, o.max_boxes);
+  if (o.max_ramps > 0) f += ramps_embed_.flops(rows, o.max_ramps);
+  f += attention_.flops(rows, o.num_entities());
+  f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
+  return f;
+}
+
+void EntityNet::forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences,
+                        int steps, const float* state_in, float* state_out, Work& ws) const {
+  Buffers& b = ws.bufs();
+  const ObsShape& o = cfg_.obs;
+  const int rows = sequences * steps;
+  assert(sequences <= b.sequences && steps == b.steps);
+  const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+
+  // Normalise (and mask) the observations: self into main[:, 0:S), lidar, and each entity type.
+  for (int r = 0; r < rows; ++r)
+    kernels::normalize_obs(in.self + static_cast<ptrdiff_t>(r) * s, norm.mean[kObsSelf],
+                           norm.inv_std[kObsSelf], nullptr, 1, s, b.main + static_cast<ptrdiff_t>(r) * m);
+  kernels::normalize_obs(in.lidar, norm.mean[kObsLidar], norm.inv_std[kObsLidar], nullptr, rows, l,
+                         b.lidar_n);
+  if (na > 0)
+    kernels::normalize_obs(in.agents, norm.mean[kObsAgents], norm.inv_std[kObsAgents], in.agents_mask,
+                           rows * na, o.agent_features, b.agents_n);
+  if (nb > 0)
+    kernels::normalize_obs(in.boxes, norm.mean[kObsBoxes], norm.inv_std[kObsBoxes], in.boxes_mask, rows * nb,
+                           o.box_features, b.boxes_n);
+  if (nr > 0)
+    kernels::normalize_obs(in.ramps, norm.mean[kObsRamps], norm.inv_std[kObsRamps], in.ramps_mask, rows * nr,
+                           o.ramp_features, b.ramps_n);
+
+  // Entity mask [agents, boxes, ramps, self].
+  for (int r = 0; r < rows; ++r) {
+    float* mk = b.mask + static_cast<ptrdiff_t>(r) * e;
+    for (int j = 0; j < na; ++j) mk[j] = in.agents_mask != nullptr ? in.agents_mask[r * na + j] : 1.0f;
+    for (int j = 0; j < nb; ++j) mk[na + j] = in.boxes_mask != nullptr ? in.boxes_mask[r * nb + j] : 1.0f;
+    for (int j = 0; j < nr; ++j)
+      mk[na + nb + j] = in.ramps_mask != nullptr ? in.ramps_mask[r * nr + j] : 1.0f;
+    mk[e - 1] = 1.0f;
+  }
+
+  // Lidar conv into main[:, S:), then the embeddings of self and of every entity type.
+  const CMat main(b.main, rows, m);
+  conv_.forward(params, CMat(b.lidar_n, rows, l), Mat(b.main + s, rows, conv_.out_width(), m));
+  const EntitySlots self_slot{b.x, rows, e, d, e - 1, 1};
+  self_embed_.forward(params, main, self_slot.slot(0));
+  const Mat scratch(b.embed_rows, rows, d);
+  if (na > 0)
+    agents_embed_.forward(params, main, CMat(b.agents_n, rows * na, o.agent_features),
+                          {b.x, rows, e, d, 0, na}, scratch);
+  if (nb > 0)
+    boxes_embed_.forward(params, main, CMat(b.boxes_n, rows * nb, o.box_features), {b.x, rows, e, d, na, nb},
+                         scratch);
+  if (nr > 0)
+    ramps_embed_.forward(params, main, CMat(b.ramps_n, rows * nr, o.ramp_features),
+                         {b.x, rows, e, d, na + nb, nr}, scratch);
+
+  // Masked residual self-attention, masked mean pool, concat with the self embedding, layer norm.
+  attention_.forward(params, CMat(b.x, rows * e, d), b.mask, e, b.sa, Mat(b.sa_out, rows * e, d));
+  masked_mean_pool(CMat(b.sa_out, rows * e, d), b.mask, e, Mat(b.cat + d, rows, d, 2 * d));
+  for (int r = 0; r < rows; ++r)
+    std::memcpy(b.cat + static_cast<ptrdiff_t>(r) * 2 * d, self_slot.at(r, 0), sizeof(float) * d);
+  cat_norm_.forward(params, CMat(b.cat, rows, 2 * d), Mat(b.cat_n, rows, 2 * d), b.cat_stats);
+
+  // Dense + ReLU fused with the following layer norm.
+  const Mat dense_a(b.dense_a, rows, cfg_.dense);
+  dense_.forward_linear(params, CMat(b.cat_n, rows, 2 * d), dense_a);
+  dense_norm_.forward_fused(params, dense_a, params + dense_.b_offset(), Activation::kRelu, dense_a,
+                            Mat(b.dense_n, rows, cfg_.dense), b.dense_stats);
+
+  // LSTM, layer norm, head.
+  lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, in.reset, state_in, b.lstm,
+                state_out);
+  out_norm_.forward(params, CMat(b.lstm.h, rows, cfg_.lstm), Mat(b.out_n, rows, cfg_.lstm), b.out_stats);
+  head_.forward(params, CMat(b.out_n, rows, cfg_.lstm), Mat(b.head, rows, num_outputs()));
+}
+
+void EntityNet::backward(const float* params, float* grads, const NetInputs& in, int sequences, int steps,
+                         CMat d_output, Work& ws) const {
+  Buffers& b = ws.bufs();
+  const ObsShape& o = cfg_.obs;
+  const int rows = sequences * steps;
+  assert(sequences <= b.sequences && steps == b.steps && d_output.rows == rows);
+  const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+  const int u = cfg_.lstm, h = cfg_.dense;
+
+  // Head, output layer norm, LSTM (through time), dense + ReLU + layer norm, concat layer norm.
+  head_.backward_preact(params, grads, CMat(b.out_n, rows, u), d_output, Mat(b.d_out_n, rows, u), false);
+  out_norm_.backward(params, grads, CMat(b.lstm.h, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
+                     Mat(b.d_h, rows, u));
+  lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, in.reset, b.lstm,
+                 CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h));
+  const Mat dz(b.d_dense_n, rows, h);
+  dense_norm_.backward_fused(params, grads, CMat(b.dense_a, rows, h), b.dense_stats, Activation::kRelu, dz,
+                             dz, nullptr);
+  dense_.backward_preact(params, grads, CMat(b.cat_n, rows, 2 * d), dz, Mat(b.d_cat_n, rows, 2 * d), false);
+  cat_norm_.backward(params, grads, CMat(b.cat, rows, 2 * d), b.cat_stats, CMat(b.d_cat_n, rows, 2 * d),
+                     Mat(b.d_cat, rows, 2 * d));
+
+  // Pool, attention; the self embedding also feeds the concat directly.
+  masked_mean_pool_backward(CMat(b.d_cat + d, rows, d, 2 * d), b.mask, e, Mat(b.d_sa_out, rows * e, d));
+  attention_.backward(params, grads, CMat(b.x, rows * e, d), b.mask, e, b.sa, CMat(b.sa_out, rows * e, d),
+                      CMat(b.d_sa_out, rows * e, d), Mat(b.d_x, rows * e, d));
+  const EntitySlots self_slot{b.x, rows, e, d, e - 1, 1};
+  const EntitySlots d_self_slot{b.d_x, rows, e, d, e - 1, 1};
+  for (int r = 0; r < rows; ++r) {
+    float* dst = d_self_slot.at(r, 0);
+    const float* src = b.d_cat + static_cast<ptrdiff_t>(r) * 2 * d;
+    for (int i = 0; i < d; ++i) dst[i] += src[i];
+  }
+
+  // Embeddings (gradient w.r.t. main accumulated), then the lidar conv's share of main.
+  const CMat main(b.main, rows, m);
+  const Mat d_main(b.d_main, rows, m);
+  self_embed_.backward(params, grads, main, self_slot.slot(0), d_self_slot.slot(0), d_main, false);
+  const Mat scratch_rows(b.embed_rows, rows, d);
+  if (na > 0)
+    agents_embed_.backward(params, grads, main, CMat(b.agents_n, rows * na, o.agent_features),
+                           {b.x, rows, e, d, 0, na}, {b.d_x, rows, e, d, 0, na}, scratch_rows,
+                           Mat(b.embed_ent, rows * na, d), d_main);
+  if (nb > 0)
+    boxes_embed_.backward(params, grads, main, CMat(b.boxes_n, rows * nb, o.box_features),
+                          {b.x, rows, e, d, na, nb}, {b.d_x, rows, e, d, na, nb}, scratch_rows,
+                          Mat(b.embed_ent, rows * nb, d), d_main);
+  if (nr > 0)
+    ramps_embed_.backward(params, grads, main, CMat(b.ramps_n, rows * nr, o.ramp_features),
+                          {b.x, rows, e, d, na + nb, nr}, {b.d_x, rows, e, d, na + nb, nr}, scratch_rows,
+                          Mat(b.embed_ent, rows * nr, d), d_main);
+  conv_.backward(params, grads, CMat(b.lidar_n, rows, l), CMat(b.main + s, rows, conv_.out_width(), m),
+                 Mat(b.d_main + s, rows, conv_.out_width(), m));
+}
+
+}  // namespace hns::nn

@@ -1,0 +1,164 @@
+// The hide-and-seek policy and value networks (SPEC.md §10.3 variant A; same structure, separate weights):
+//
+//   self [S] ---------------------------------------------.
+//   lidar [L] -> circ conv (K filters, kernel 3, relu) -> main = [self, conv] (S + L*K)
+//   main -> dense D relu ------------------------------------------------------------> self entity ---.
+//   [main, agent_j] -> dense D relu (per type; boxes, ramps likewise) -> entities [A + B + R + 1, D] <-'
+//   entities -> residual self-attention (heads x D/heads, pre and post layer norm), masked
+//            -> masked mean pool -> concat [self entity embedding, pooled] (2D) -> layer norm
+//            -> dense H relu -> layer norm -> LSTM U -> layer norm -> heads
+//   policy heads: 37 logits (3 x 11 movement, 2 grab, 2 lock); value head: 1 (normalised value).
+//
+// Observations are normalised inside forward (fused normalise + mask kernel), entities with mask 0 are zeroed
+// and excluded from attention (as keys) and from pooling. The policy uses the visibility masks, the value net
+// the omniscient ones (SPEC.md §4.6; see nn/actor_critic.hpp).
+//
+// Rows are agent-steps, sequence-major: row = b * steps + t for `sequences` sequences of `steps` steps
+// (inference: steps = 1, one row per agent). A Workspace holds every activation for one (sequences, steps)
+// shape.
+#pragma once
+
+#include "nn/heads.hpp"
+#include "nn/layers.hpp"
+#include "nn/obs_normalizer.hpp"
+
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace hns::nn {
+
+// Observation sizes: parameters, so the simulator's configuration plugs in (defaults: the `full` scene with
+// yaw as cos/sin, SPEC.md §14.1).
+struct ObsShape {
+  int self_features =
+      11;  // x_self: position 3, yaw cos/sin 2, velocity 3, angular velocity 1, team bit, prep obs
+  int max_agents = 6;       // agents per env at most; each agent sees the other max_agents - 1
+  int agent_features = 11;  // per other agent: same quantities as x_self
+  int max_boxes = 9;
+  int box_features = 15;  // position 3, yaw cos/sin 2, velocity 3, angular velocity 1, size 3, lock 3
+  int max_ramps = 2;
+  int ramp_features = 15;  // as boxes (size padded with zeros)
+  int lidar_rays = 30;
+
+  int num_other_agents() const { return max_agents - 1; }
+  // Entities attended over: other agents, boxes, ramps, self.
+  int num_entities() const { return num_other_agents() + max_boxes + max_ramps + 1; }
+};
+
+struct NetConfig {
+  ObsShape obs;
+  int lidar_filters = 9;  // circular conv filters
+  int lidar_kernel = 3;
+  int embed = 128;                                     // entity embedding width = attention width (n_embd)
+  int heads = 4;                                       // attention heads (embed / heads features each)
+  int dense = 256;                                     // dense layer after pooling
+  int lstm = 256;                                      // LSTM units
+  std::vector<int> action_heads = {11, 11, 11, 2, 2};  // choices per categorical action head
+};
+
+// Model presets: "paper" (embedding 128, attention 4 x 32, dense 256, LSTM 256; about 1.6 M parameters for
+// policy
+// + value) and "small" (embedding 64, attention 2 x 32, dense 128, LSTM 128). Throws std::invalid_argument
+// naming the allowed values for anything else.
+NetConfig net_preset(std::string_view name);
+std::vector<std::string> net_preset_names();
+
+// Raw observations and masks of `rows` agent-steps for one network (caller-owned; all float).
+struct NetInputs {
+  const float* self = nullptr;         // [rows, self_features]
+  const float* lidar = nullptr;        // [rows, lidar_rays], m
+  const float* agents = nullptr;       // [rows, max_agents - 1, agent_features]
+  const float* boxes = nullptr;        // [rows, max_boxes, box_features]
+  const float* ramps = nullptr;        // [rows, max_ramps, ramp_features]
+  const float* agents_mask = nullptr;  // [rows, max_agents - 1], 0/1; null = all 1
+  const float* boxes_mask = nullptr;   // [rows, max_boxes]
+  const float* ramps_mask = nullptr;   // [rows, max_ramps]
+  const float* reset = nullptr;  // [rows], 1 where the LSTM state is zeroed before the step; null = never
+};
+
+enum class NetHead { kPolicy, kValue };
+
+class EntityNet {
+ public:
+  // Every activation of one forward pass and the backward scratch, for sequences x steps rows.
+  struct Buffers {
+    NetConfig cfg;
+    int sequences = 0, steps = 0, outputs = 0;
+    float* main = nullptr;        // [rows, S + L*K] normalised self, then conv features
+    float* lidar_n = nullptr;     // [rows, L] normalised lidar
+    float* agents_n = nullptr;    // [rows * A, Fa] normalised, masked rows zero
+    float* boxes_n = nullptr;     // [rows * B, Fb]
+    float* ramps_n = nullptr;     // [rows * R, Fr]
+    float* mask = nullptr;        // [rows, E] entity mask (agents, boxes, ramps, self = 1)
+    float* x = nullptr;           // [rows * E, D] entity embeddings
+    float* embed_rows = nullptr;  // [rows, D] scratch
+    float* embed_ent = nullptr;   // [rows * max(A, B, R), D] scratch
+    SelfAttention::Buffers sa;
+    float* sa_out = nullptr;       // [rows * E, D]
+    float* cat = nullptr;          // [rows, 2D] self embedding, pooled
+    float* cat_n = nullptr;        // [rows, 2D] layer-normed
+    float* cat_stats = nullptr;    // [rows, 2]
+    float* dense_a = nullptr;      // [rows, H] relu(dense)
+    float* dense_n = nullptr;      // [rows, H] layer-normed
+    float* dense_stats = nullptr;  // [rows, 2]
+    Lstm::Buffers lstm;
+    float* out_n = nullptr;      // [rows, U] layer-normed LSTM output
+    float* out_stats = nullptr;  // [rows, 2]
+    float* head = nullptr;       // [rows, outputs]
+    float* d_out_n = nullptr;    // [rows, U]
+    float* d_h = nullptr;        // [rows, U]
+    float* d_dense_n = nullptr;  // [rows, H]
+    float* d_cat_n = nullptr;    // [rows, 2D]
+    float* d_cat = nullptr;      // [rows, 2D]
+    float* d_sa_out = nullptr;   // [rows * E, D]
+    float* d_x = nullptr;        // [rows * E, D]
+    float* d_main = nullptr;     // [rows, S + L*K]
+    Buffers() = default;
+    Buffers(const NetConfig& cfg, int outputs, int sequences, int steps);
+    void bind(Arena& arena);
+  };
+  using Work = Workspace<Buffers>;
+
+  EntityNet() = default;
+  // Registers this net's parameters under "<prefix>/...".
+  EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, const std::string& prefix);
+
+  const NetConfig& config() const { return cfg_; }
+  NetHead head_kind() const { return head_kind_; }
+  int num_outputs() const { return head_.out(); }
+  int main_width() const { return cfg_.obs.self_features + conv_.out_width(); }
+  // Workspace for chunks of up to `sequences` sequences of `steps` steps.
+  Work make_workspace(int sequences, int steps) const { return Work(cfg_, num_outputs(), sequences, steps); }
+  // Multiply-add flops of one forward pass over `rows` agent-steps (GEMMs, conv and attention products);
+  // a backward pass is counted as twice that.
+  double forward_flops(int rows) const;
+
+  // Forward over sequences x steps rows. state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
+  // state_in null means zeros, state_out null means not written. Outputs: output(ws).
+  void forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences, int steps,
+               const float* state_in, float* state_out, Work& ws) const;
+  // [rows, num_outputs] of the last forward.
+  CMat output(const Work& ws, int rows) const { return {ws.bufs().head, rows, num_outputs()}; }
+  // Backward of the last forward on ws: d_output [rows, num_outputs]; accumulates into grads.
+  void backward(const float* params, float* grads, const NetInputs& in, int sequences, int steps,
+                CMat d_output, Work& ws) const;
+
+ private:
+  NetConfig cfg_;
+  NetHead head_kind_ = NetHead::kPolicy;
+  CircConv1d conv_;
+  Dense self_embed_;
+  EntityEmbedding agents_embed_;
+  EntityEmbedding boxes_embed_;
+  EntityEmbedding ramps_embed_;
+  SelfAttention attention_;
+  LayerNorm cat_norm_;
+  Dense dense_;
+  LayerNorm dense_norm_;
+  Lstm lstm_;
+  LayerNorm out_norm_;
+  Dense head_;
+};
+
+}  // namespace hns::nn

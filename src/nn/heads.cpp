@@ -1,0 +1,112 @@
+#include "nn/heads.hpp"
+
+#include <array>
+#include <cmath>
+
+namespace hns::nn {
+namespace {
+
+// Log-softmax of one categorical's n logits into out (double for the log-sum-exp); returns nothing.
+void log_softmax(const float* l, int n, double* out) {
+  double m = l[0];
+  for (int i = 1; i < n; ++i) m = std::max(m, static_cast<double>(l[i]));
+  double s = 0.0;
+  for (int i = 0; i < n; ++i) s += std::exp(l[i] - m);
+  const double lse = m + std::log(s);
+  for (int i = 0; i < n; ++i) out[i] = l[i] - lse;
+}
+
+}  // namespace
+
+CategoricalHeads::CategoricalHeads(std::vector<int> sizes) : sizes_(std::move(sizes)) {
+  for (int s : sizes_) {
+    HNS_NN_CHECK(s >= 1 && s <= kMaxChoices, "a categorical head needs 1 to kMaxChoices choices");
+    offsets_.push_back(num_logits_);
+    num_logits_ += s;
+    max_size_ = std::max(max_size_, s);
+  }
+}
+
+void CategoricalHeads::log_prob_entropy(CMat logits, const int32_t* actions, float* logp,
+                                        float* entropy) const {
+  std::array<double, kMaxChoices> lp{};
+  for (int r = 0; r < logits.rows; ++r) {
+    double sum_lp = 0.0;
+    double sum_ent = 0.0;
+    for (int h = 0; h < num_heads(); ++h) {
+      const int n = sizes_[h];
+      log_softmax(logits.row(r) + offsets_[h], n, lp.data());
+      if (actions != nullptr) {
+        const int a = actions[static_cast<ptrdiff_t>(r) * num_heads() + h];
+        assert(a >= 0 && a < n);
+        sum_lp += lp[a];
+      }
+      for (int i = 0; i < n; ++i) sum_ent -= std::exp(lp[i]) * lp[i];
+    }
+    if (logp != nullptr) logp[r] = static_cast<float>(sum_lp);
+    if (entropy != nullptr) entropy[r] = static_cast<float>(sum_ent);
+  }
+}
+
+void CategoricalHeads::sample(CMat logits, const float* uniforms, int32_t* actions, float* logp) const {
+  std::array<double, kMaxChoices> lp{};
+  for (int r = 0; r < logits.rows; ++r) {
+    double sum_lp = 0.0;
+    for (int h = 0; h < num_heads(); ++h) {
+      const int n = sizes_[h];
+      log_softmax(logits.row(r) + offsets_[h], n, lp.data());
+      const double u = uniforms[static_cast<ptrdiff_t>(r) * num_heads() + h];
+      // First choice whose cumulative probability exceeds u; the last one if rounding leaves u above all.
+      int a = n - 1;
+      double cum = 0.0;
+      for (int i = 0; i < n; ++i) {
+        cum += std::exp(lp[i]);
+        if (u < cum) {
+          a = i;
+          break;
+        }
+      }
+      actions[static_cast<ptrdiff_t>(r) * num_heads() + h] = a;
+      sum_lp += lp[a];
+    }
+    if (logp != nullptr) logp[r] = static_cast<float>(sum_lp);
+  }
+}
+
+void CategoricalHeads::argmax(CMat logits, int32_t* actions) const {
+  for (int r = 0; r < logits.rows; ++r) {
+    for (int h = 0; h < num_heads(); ++h) {
+      const float* l = logits.row(r) + offsets_[h];
+      int best = 0;
+      for (int i = 1; i < sizes_[h]; ++i)
+        if (l[i] > l[best]) best = i;
+      actions[static_cast<ptrdiff_t>(r) * num_heads() + h] = best;
+    }
+  }
+}
+
+void CategoricalHeads::backward(CMat logits, const int32_t* actions, const float* d_logp,
+                                const float* d_entropy, Mat d_logits) const {
+  std::array<double, kMaxChoices> lp{};
+  for (int r = 0; r < logits.rows; ++r) {
+    const double gl = d_logp != nullptr ? d_logp[r] : 0.0;
+    const double ge = d_entropy != nullptr ? d_entropy[r] : 0.0;
+    float* out = d_logits.row(r);
+    for (int h = 0; h < num_heads(); ++h) {
+      const int n = sizes_[h];
+      log_softmax(logits.row(r) + offsets_[h], n, lp.data());
+      // H = -sum p log p; dH/dl_k = -p_k (log p_k + H). dlogp_a/dl_k = [k == a] - p_k.
+      double ent = 0.0;
+      for (int i = 0; i < n; ++i) ent -= std::exp(lp[i]) * lp[i];
+      const int a = actions != nullptr ? actions[static_cast<ptrdiff_t>(r) * num_heads() + h] : -1;
+      for (int i = 0; i < n; ++i) {
+        const double p = std::exp(lp[i]);
+        double g = ge * (-p * (lp[i] + ent));
+        if (actions != nullptr) g += gl * ((i == a ? 1.0 : 0.0) - p);
+        out[offsets_[h] + i] = static_cast<float>(g);
+      }
+    }
+  }
+}
+
+}  // namespace hns::nn

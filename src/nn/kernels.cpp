@@ -1,0 +1,257 @@
+#include "nn/kernels.hpp"
+
+#include "nn/simd.hpp"
+
+namespace hns::nn::kernels {
+namespace {
+
+using simd::Batch;
+using simd::load;
+using simd::store;
+
+template <class F>
+F activate(F x, Activation act) {
+  return act == Activation::kRelu ? simd::max(x, F(0.0f)) : x;
+}
+
+template <bool kSimd>
+void normalize_obs_impl(const float* x, const float* mean, const float* inv_std, const float* row_mask,
+                        int rows, int n, float* y) {
+  for (int r = 0; r < rows; ++r) {
+    const float* xr = x + static_cast<ptrdiff_t>(r) * n;
+    float* yr = y + static_cast<ptrdiff_t>(r) * n;
+    if (row_mask != nullptr && row_mask[r] == 0.0f) {
+      for (int i = 0; i < n; ++i) yr[i] = 0.0f;
+      continue;
+    }
+    simd::for_each<kSimd>(n, [&](auto tag, int i) {
+      using F = decltype(tag);
+      const F v = (load<F>(xr + i) - load<F>(mean + i)) * load<F>(inv_std + i);
+      store(yr + i, simd::min(simd::max(v, F(-kObsClip)), F(kObsClip)));
+    });
+  }
+}
+
+template <bool kSimd>
+void bias_act_impl(float* y, const float* bias, Activation act, int n) {
+  simd::for_each<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    F v = load<F>(y + i);
+    if (bias != nullptr) v = v + load<F>(bias + i);
+    store(y + i, activate(v, act));
+  });
+}
+
+template <bool kSimd>
+void masked_softmax_impl(const float* logits, const float* mask, float scale, int n, float* p) {
+  // l = logits * scale - (1 - mask) * penalty, computed where needed (not stored).
+  auto logit = [&](auto tag, int i) {
+    using F = decltype(tag);
+    return simd::fma(F(1.0f) - load<F>(mask + i), F(-kMaskedLogitPenalty), load<F>(logits + i) * F(scale));
+  };
+  const float m = simd::max_of<kSimd>(n, logit);
+  // e = exp(l - max) * mask, written to p, summed in the vector loop's order.
+  const float s = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    const F e = simd::exp(logit(tag, i) - F(m)) * load<F>(mask + i);
+    store(p + i, e);
+    return e;
+  });
+  const float denom = s + kSoftmaxSumEps;
+  simd::for_each<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(p + i, load<F>(p + i) / F(denom) * load<F>(mask + i));
+  });
+}
+
+template <bool kSimd>
+void masked_softmax_backward_impl(const float* p, const float* dp, float scale, int n, float* dlogits) {
+  const float s = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    return load<F>(p + i) * load<F>(dp + i);
+  });
+  simd::for_each<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(dlogits + i, load<F>(p + i) * (load<F>(dp + i) - F(s)) * F(scale));
+  });
+}
+
+template <bool kSimd>
+void act_layer_norm_impl(const float* z, const float* pre_bias, Activation act, const float* gain,
+                         const float* bias, int n, float* a, float* y, float* stats) {
+  // a = act(z + pre_bias), summed for the mean. Without a bias or activation, a is z itself.
+  const bool plain = pre_bias == nullptr && act == Activation::kNone;
+  if (plain) a = nullptr;
+  const float s = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    F v = load<F>(z + i);
+    if (plain) return v;
+    if (pre_bias != nullptr) v = v + load<F>(pre_bias + i);
+    v = activate(v, act);
+    store(a + i, v);
+    return v;
+  });
+  const float* src = plain ? z : a;
+  const float mean = n > 0 ? s / static_cast<float>(n) : 0.0f;
+  // Two-pass variance (as tf.nn.moments).
+  const float ss = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    const F d = load<F>(src + i) - F(mean);
+    return d * d;
+  });
+  const float var = n > 0 ? ss / static_cast<float>(n) : 0.0f;
+  const float rstd = 1.0f / std::sqrt(var + kLayerNormEps);
+  stats[0] = mean;
+  stats[1] = rstd;
+  simd::for_each<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    const F xhat = (load<F>(src + i) - F(mean)) * F(rstd);
+    store(y + i, simd::fma(xhat, load<F>(gain + i), load<F>(bias + i)));
+  });
+}
+
+template <bool kSimd>
+void act_layer_norm_backward_impl(const float* a, const float* stats, const float* gain, const float* dy,
+                                  Activation act, int n, float* dgain, float* dbias, float* dz) {
+  const float mean = stats[0];
+  const float rstd = stats[1];
+  // g = dy * gain; mean(g) and mean(g * xhat).
+  const float sg = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    return load<F>(dy + i) * load<F>(gain + i);
+  });
+  const float sgx = simd::sum<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    const F xhat = (load<F>(a + i) - F(mean)) * F(rstd);
+    return load<F>(dy + i) * load<F>(gain + i) * xhat;
+  });
+  const float inv_n = n > 0 ? 1.0f / static_cast<float>(n) : 0.0f;
+  const float mg = sg * inv_n;
+  const float mgx = sgx * inv_n;
+  simd::for_each<kSimd>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    const F av = load<F>(a + i);
+    const F d = load<F>(dy + i);
+    const F xhat = (av - F(mean)) * F(rstd);
+    store(dgain + i, simd::fma(d, xhat, load<F>(dgain + i)));
+    store(dbias + i, load<F>(dbias + i) + d);
+    F dx = (d * load<F>(gain + i) - F(mg) - xhat * F(mgx)) * F(rstd);
+    if (act == Activation::kRelu) dx = simd::select(av > F(0.0f), dx, F(0.0f));
+    store(dz + i, dx);
+  });
+}
+
+template <bool kSimd>
+void lstm_cell_impl(const float* g, const float* c_prev, int u, float* gates, float* c, float* tanh_c,
+                    float* h) {
+  const ptrdiff_t un = u;  // gate block stride
+  simd::for_each<kSimd>(u, [&](auto tag, int k) {
+    using F = decltype(tag);
+    const F i = simd::sigmoid(load<F>(g + k));
+    const F j = simd::tanh(load<F>(g + un + k));
+    const F f = simd::sigmoid(load<F>(g + 2 * un + k) + F(kLstmForgetBias));
+    const F o = simd::sigmoid(load<F>(g + 3 * un + k));
+    const F cn = simd::fma(load<F>(c_prev + k), f, i * j);
+    const F tc = simd::tanh(cn);
+    store(gates + k, i);
+    store(gates + un + k, j);
+    store(gates + 2 * un + k, f);
+    store(gates + 3 * un + k, o);
+    store(c + k, cn);
+    store(tanh_c + k, tc);
+    store(h + k, tc * o);
+  });
+}
+
+template <bool kSimd>
+void lstm_cell_backward_impl(const float* gates, const float* c_prev, const float* tanh_c, const float* dh,
+                             const float* dc, int u, float* dg, float* dc_prev) {
+  const ptrdiff_t un = u;  // gate block stride
+  simd::for_each<kSimd>(u, [&](auto tag, int k) {
+    using F = decltype(tag);
+    const F one(1.0f);
+    const F i = load<F>(gates + k);
+    const F j = load<F>(gates + un + k);
+    const F f = load<F>(gates + 2 * un + k);
+    const F o = load<F>(gates + 3 * un + k);
+    const F tc = load<F>(tanh_c + k);
+    const F dhk = load<F>(dh + k);
+    F dck = dhk * o * (one - tc * tc);
+    if (dc != nullptr) dck = dck + load<F>(dc + k);
+    store(dg + k, dck * j * i * (one - i));
+    store(dg + un + k, dck * i * (one - j * j));
+    store(dg + 2 * un + k, dck * load<F>(c_prev + k) * f * (one - f));
+    store(dg + 3 * un + k, dhk * tc * o * (one - o));
+    store(dc_prev + k, dck * f);
+  });
+}
+
+}  // namespace
+
+int simd_width() {
+  return simd::kWidth;
+}
+
+void normalize_obs(const float* x, const float* mean, const float* inv_std, const float* row_mask, int rows,
+                   int n, float* y) {
+  normalize_obs_impl<true>(x, mean, inv_std, row_mask, rows, n, y);
+}
+void normalize_obs_scalar(const float* x, const float* mean, const float* inv_std, const float* row_mask,
+                          int rows, int n, float* y) {
+  normalize_obs_impl<false>(x, mean, inv_std, row_mask, rows, n, y);
+}
+
+void bias_act(float* y, const float* bias, Activation act, int n) {
+  bias_act_impl<true>(y, bias, act, n);
+}
+void bias_act_scalar(float* y, const float* bias, Activation act, int n) {
+  bias_act_impl<false>(y, bias, act, n);
+}
+
+void masked_softmax(const float* logits, const float* mask, float scale, int n, float* p) {
+  masked_softmax_impl<true>(logits, mask, scale, n, p);
+}
+void masked_softmax_scalar(const float* logits, const float* mask, float scale, int n, float* p) {
+  masked_softmax_impl<false>(logits, mask, scale, n, p);
+}
+void masked_softmax_backward(const float* p, const float* dp, float scale, int n, float* dlogits) {
+  masked_softmax_backward_impl<true>(p, dp, scale, n, dlogits);
+}
+void masked_softmax_backward_scalar(const float* p, const float* dp, float scale, int n, float* dlogits) {
+  masked_softmax_backward_impl<false>(p, dp, scale, n, dlogits);
+}
+
+void act_layer_norm(const float* z, const float* pre_bias, Activation act, const float* gain,
+                    const float* bias, int n, float* a, float* y, float* stats) {
+  act_layer_norm_impl<true>(z, pre_bias, act, gain, bias, n, a, y, stats);
+}
+void act_layer_norm_scalar(const float* z, const float* pre_bias, Activation act, const float* gain,
+                           const float* bias, int n, float* a, float* y, float* stats) {
+  act_layer_norm_impl<false>(z, pre_bias, act, gain, bias, n, a, y, stats);
+}
+void act_layer_norm_backward(const float* a, const float* stats, const float* gain, const float* dy,
+                             Activation act, int n, float* dgain, float* dbias, float* dz) {
+  act_layer_norm_backward_impl<true>(a, stats, gain, dy, act, n, dgain, dbias, dz);
+}
+void act_layer_norm_backward_scalar(const float* a, const float* stats, const float* gain, const float* dy,
+                                    Activation act, int n, float* dgain, float* dbias, float* dz) {
+  act_layer_norm_backward_impl<false>(a, stats, gain, dy, act, n, dgain, dbias, dz);
+}
+
+void lstm_cell(const float* g, const float* c_prev, int u, float* gates, float* c, float* tanh_c, float* h) {
+  lstm_cell_impl<true>(g, c_prev, u, gates, c, tanh_c, h);
+}
+void lstm_cell_scalar(const float* g, const float* c_prev, int u, float* gates, float* c, float* tanh_c,
+                      float* h) {
+  lstm_cell_impl<false>(g, c_prev, u, gates, c, tanh_c, h);
+}
+void lstm_cell_backward(const float* gates, const float* c_prev, const float* tanh_c, const float* dh,
+                        const float* dc, int u, float* dg, float* dc_prev) {
+  lstm_cell_backward_impl<true>(gates, c_prev, tanh_c, dh, dc, u, dg, dc_prev);
+}
+void lstm_cell_backward_scalar(const float* gates, const float* c_prev, const float* tanh_c, const float* dh,
+                               const float* dc, int u, float* dg, float* dc_prev) {
+  lstm_cell_backward_impl<false>(gates, c_prev, tanh_c, dh, dc, u, dg, dc_prev);
+}
+
+}  // namespace hns::nn::kernels

@@ -1,0 +1,555 @@
+#include "nn/layers.hpp"
+
+#include "nn/simd.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+namespace hns::nn {
+namespace {
+
+using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using ConstWeights = Eigen::Map<const RowMat>;
+using Weights = Eigen::Map<RowMat>;
+
+// out[0, n) += in[0, n).
+void add_row(float* out, const float* in, int n) {
+  for (int i = 0; i < n; ++i) out[i] += in[i];
+}
+
+// Column sums of dz accumulated into g (rows in order).
+void add_col_sums(float* g, CMat dz) {
+  for (int r = 0; r < dz.rows; ++r) add_row(g, dz.row(r), dz.cols);
+}
+
+void zero_mat(Mat m) {
+  for (int r = 0; r < m.rows; ++r) std::memset(m.row(r), 0, sizeof(float) * m.cols);
+}
+
+void copy_mat(CMat src, Mat dst) {
+  for (int r = 0; r < src.rows; ++r) std::memcpy(dst.row(r), src.row(r), sizeof(float) * src.cols);
+}
+
+// Dot product in the vector lanes' order (nn/simd.hpp).
+float dot(const float* a, const float* b, int n) {
+  return simd::sum<true>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    return simd::load<F>(a + i) * simd::load<F>(b + i);
+  });
+}
+
+// y[0, n) += a * x[0, n).
+void axpy(float a, const float* x, float* y, int n) {
+  for (int i = 0; i < n; ++i) y[i] += a * x[i];
+}
+
+}  // namespace
+
+// ---- Dense
+// ----------------------------------------------------------------------------------------------------
+
+Dense::Dense(ParamLayout& layout, const std::string& name, int in, int out, Activation act, KernelInit init)
+    : in_(in), out_(out), act_(act) {
+  switch (init.kind) {
+    case Init::kNormal:
+      w_ = layout.add_kernel_normal(name + "/w", in, out, init.std);
+      break;
+    case Init::kNormc:
+      w_ = layout.add_kernel_normc(name + "/w", in, out, init.std);
+      break;
+    default:
+      w_ = layout.add_kernel_xavier(name + "/w", in, out, static_cast<float>(in), static_cast<float>(out));
+      break;
+  }
+  b_ = layout.add_vector(name + "/b", out, Init::kZeros);
+}
+
+void Dense::forward_linear(const float* params, CMat x, Mat z) const {
+  assert(x.cols == in_ && z.cols == out_ && x.rows == z.rows);
+  z.map().noalias() = x.map() * ConstWeights(params + w_, in_, out_);
+}
+
+void Dense::forward(const float* params, CMat x, Mat y) const {
+  forward_linear(params, x, y);
+  for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), params + b_, act_, out_);
+}
+
+void Dense::backward(const float* params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
+                     bool accumulate_dx) const {
+  if (act_ == Activation::kRelu) {
+    for (int r = 0; r < dy.rows; ++r) {
+      const float* yr = y.row(r);
+      float* dr = dy.row(r);
+      for (int c = 0; c < out_; ++c) dr[c] = yr[c] > 0.0f ? dr[c] : 0.0f;
+    }
+  }
+  backward_preact(params, grads, x, dy, dx, accumulate_dx);
+}
+
+void Dense::backward_preact(const float* params, float* grads, CMat x, CMat dz, Mat dx,
+                            bool accumulate_dx) const {
+  assert(x.cols == in_ && dz.cols == out_ && x.rows == dz.rows);
+  Weights(grads + w_, in_, out_).noalias() += x.map().transpose() * dz.map();
+  add_col_sums(grads + b_, dz);
+  if (dx.empty()) return;
+  const ConstWeights w(params + w_, in_, out_);
+  if (accumulate_dx) {
+    dx.map().noalias() += dz.map() * w.transpose();
+  } else {
+    dx.map().noalias() = dz.map() * w.transpose();
+  }
+}
+
+// ---- LayerNorm
+// ------------------------------------------------------------------------------------------------
+
+LayerNorm::LayerNorm(ParamLayout& layout, const std::string& name, int n) : n_(n) {
+  gain_ = layout.add_vector(name + "/gain", n, Init::kOnes);
+  bias_ = layout.add_vector(name + "/bias", n, Init::kZeros);
+}
+
+void LayerNorm::forward(const float* params, CMat x, Mat y, float* stats) const {
+  for (int r = 0; r < x.rows; ++r)
+    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params + gain_, params + bias_, n_, nullptr,
+                            y.row(r), stats + 2 * static_cast<ptrdiff_t>(r));
+}
+
+void LayerNorm::forward_fused(const float* params, CMat z, const float* pre_bias, Activation act, Mat a,
+                              Mat y, float* stats) const {
+  for (int r = 0; r < z.rows; ++r)
+    kernels::act_layer_norm(z.row(r), pre_bias, act, params + gain_, params + bias_, n_, a.row(r), y.row(r),
+                            stats + 2 * static_cast<ptrdiff_t>(r));
+}
+
+void LayerNorm::backward(const float* params, float* grads, CMat x, const float* stats, CMat dy,
+                         Mat dx) const {
+  for (int r = 0; r < x.rows; ++r)
+    kernels::act_layer_norm_backward(x.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params + gain_,
+                                     dy.row(r), Activation::kNone, n_, grads + gain_, grads + bias_,
+                                     dx.row(r));
+}
+
+void LayerNorm::backward_fused(const float* params, float* grads, CMat a, const float* stats, Activation act,
+                               CMat dy, Mat dz, float* pre_bias_grad) const {
+  for (int r = 0; r < a.rows; ++r) {
+    kernels::act_layer_norm_backward(a.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params + gain_,
+                                     dy.row(r), act, n_, grads + gain_, grads + bias_, dz.row(r));
+    if (pre_bias_grad != nullptr) add_row(pre_bias_grad, dz.row(r), n_);
+  }
+}
+
+// ---- CircConv1d
+// -----------------------------------------------------------------------------------------------
+
+CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length, int in_ch, int out_ch,
+                       int kernel)
+    : length_(length), in_ch_(in_ch), out_ch_(out_ch), kernel_(kernel) {
+  HNS_NN_CHECK(kernel % 2 == 1, "circular conv kernel must be odd");
+  HNS_NN_CHECK(kernel <= length, "circular conv kernel wider than the input");
+  w_ = layout.add_kernel_xavier(name + "/w", kernel * in_ch, out_ch, static_cast<float>(kernel * in_ch),
+                                static_cast<float>(kernel * out_ch));
+  b_ = layout.add_vector(name + "/b", out_ch, Init::kZeros);
+}
+
+void CircConv1d::forward(const float* params, CMat x, Mat y) const {
+  const float* w = params + w_;
+  const float* b = params + b_;
+  const int pad = kernel_ / 2;
+  const ptrdiff_t in_ch = in_ch_, out_ch = out_ch_;
+  for (int r = 0; r < x.rows; ++r) {
+    const float* xr = x.row(r);
+    float* yr = y.row(r);
+    for (int p = 0; p < length_; ++p) {
+      float* out = yr + p * out_ch;
+      for (int f = 0; f < out_ch_; ++f) out[f] = b[f];
+      for (int k = 0; k < kernel_; ++k) {
+        const int src = (p + k - pad + length_) % length_;
+        for (int c = 0; c < in_ch_; ++c)
+          axpy(xr[src * in_ch + c], w + (k * in_ch + c) * out_ch, out, out_ch_);
+      }
+      for (int f = 0; f < out_ch_; ++f) out[f] = std::max(out[f], 0.0f);
+    }
+  }
+}
+
+void CircConv1d::backward(const float* /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
+  float* gw = grads + w_;
+  float* gb = grads + b_;
+  const int pad = kernel_ / 2;
+  const ptrdiff_t in_ch = in_ch_, out_ch = out_ch_;
+  for (int r = 0; r < x.rows; ++r) {
+    const float* xr = x.row(r);
+    const float* yr = y.row(r);
+    float* dr = dy.row(r);
+    for (int i = 0; i < length_ * out_ch_; ++i) dr[i] = yr[i] > 0.0f ? dr[i] : 0.0f;
+    for (int p = 0; p < length_; ++p) {
+      const float* d = dr + p * out_ch;
+      add_row(gb, d, out_ch_);
+      for (int k = 0; k < kernel_; ++k) {
+        const int src = (p + k - pad + length_) % length_;
+        for (int c = 0; c < in_ch_; ++c) axpy(xr[src * in_ch + c], d, gw + (k * in_ch + c) * out_ch, out_ch_);
+      }
+    }
+  }
+}
+
+// ---- EntityEmbedding
+// ------------------------------------------------------------------------------------------
+
+EntityEmbedding::EntityEmbedding(ParamLayout& layout, const std::string& name, int main_width, int features,
+                                 int width)
+    : main_width_(main_width), features_(features), width_(width) {
+  const int in = main_width + features;
+  w_ = layout.add_kernel_xavier(name + "/w", in, width, static_cast<float>(in), static_cast<float>(width));
+  b_ = layout.add_vector(name + "/b", width, Init::kZeros);
+}
+
+void EntityEmbedding::forward(const float* params, CMat main, CMat ent, const EntitySlots& out,
+                              Mat scratch) const {
+  const ConstWeights w_main(params + w_, main_width_, width_);
+  const ConstWeights w_ent(params + w_ + static_cast<size_t>(main_width_) * width_, features_, width_);
+  // The x_self part once per row, with the bias.
+  scratch.map().noalias() = main.map() * w_main;
+  for (int r = 0; r < scratch.rows; ++r) add_row(scratch.row(r), params + b_, width_);
+  // The entity part, one strided product per entity slot, then broadcast add and ReLU.
+  for (int e = 0; e < out.count; ++e)
+    out.slot(e).map().noalias() = ent.every(e, out.count, out.rows).map() * w_ent;
+  for (int r = 0; r < out.rows; ++r) {
+    const float* s = scratch.row(r);
+    for (int e = 0; e < out.count; ++e) {
+      float* o = out.at(r, e);
+      for (int i = 0; i < width_; ++i) o[i] = std::max(o[i] + s[i], 0.0f);
+    }
+  }
+}
+
+void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMat ent, const EntitySlots& out,
+                               const EntitySlots& dout, Mat scratch_rows, Mat scratch_ent, Mat d_main) const {
+  // dz[r * count + e] = dout[r, e] masked by ReLU; dsum[r] = sum_e dz[r * count + e].
+  for (int r = 0; r < out.rows; ++r) {
+    float* sum = scratch_rows.row(r);
+    std::memset(sum, 0, sizeof(float) * width_);
+    for (int e = 0; e < out.count; ++e) {
+      const float* o = out.at(r, e);
+      const float* d = dout.at(r, e);
+      float* z = scratch_ent.row(r * out.count + e);
+      for (int i = 0; i < width_; ++i) z[i] = o[i] > 0.0f ? d[i] : 0.0f;
+      add_row(sum, z, width_);
+    }
+  }
+  Weights(grads + w_ + static_cast<size_t>(main_width_) * width_, features_, width_).noalias() +=
+      ent.map().transpose() * scratch_ent.map();
+  Weights(grads + w_, main_width_, width_).noalias() += main.map().transpose() * scratch_rows.map();
+  add_col_sums(grads + b_, scratch_rows);
+  d_main.map().noalias() += scratch_rows.map() * ConstWeights(params + w_, main_width_, width_).transpose();
+}
+
+// ---- SelfAttention
+// --------------------------------------------------------------------------------------------
+
+void SelfAttention::Buffers::bind(Arena& arena) {
+  const size_t n = static_cast<size_t>(rows) * entities;
+  const size_t dh = width / heads;
+  xn = arena.take(n * width);
+  ln_pre = arena.take(n * 2);
+  qk = arena.take(n * 2 * width);
+  v = arena.take(n * width);
+  q = arena.take(n * width);
+  k = arena.take(n * width);
+  probs = arena.take(n * heads * entities);
+  att = arena.take(n * width);
+  res = arena.take(n * width);
+  ln_post = arena.take(n * 2);
+  d_xn = arena.take(n * width);
+  d_qk = arena.take(n * 2 * width);
+  d_v = arena.take(n * width);
+  d_att = arena.take(n * width);
+  d_res = arena.take(n * width);
+  d_qh = arena.take(entities * dh);
+  d_kh = arena.take(entities * dh);
+  d_p = arena.take(static_cast<size_t>(entities) * entities);
+}
+
+SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int width, int heads, bool pre_ln,
+                             bool post_ln)
+    : width_(width), heads_(heads), pre_ln_(pre_ln), post_ln_(post_ln) {
+  HNS_NN_CHECK(heads > 0 && width % heads == 0, "attention width must be a multiple of the head count");
+  const float std_in = std::sqrt(0.125f / static_cast<float>(width));
+  if (pre_ln) ln_pre_ = LayerNorm(layout, name + "/ln_pre", width);
+  qk_ = Dense(layout, name + "/qk", width, 2 * width, Activation::kNone, {Init::kNormal, std_in});
+  v_ = Dense(layout, name + "/v", width, width, Activation::kNone, {Init::kNormal, std_in});
+  mlp1_ = Dense(layout, name + "/mlp1", width, width, Activation::kNone, {Init::kNormal, std_in});
+  if (post_ln) ln_post_ = LayerNorm(layout, name + "/ln_post", width);
+}
+
+double SelfAttention::flops(int rows, int entities) const {
+  const int n = rows * entities;
+  // qk, v, mlp1 products plus q k^T and p v.
+  return qk_.flops(n) + v_.flops(n) + mlp1_.flops(n) + 2.0 * 2.0 * rows * entities * entities * width_;
+}
+
+void SelfAttention::forward(const float* params, CMat x, const float* mask, int entities, Buffers& bufs,
+                            Mat out) const {
+  const int n = x.rows;
+  const int rows = n / entities;
+  const int d = width_;
+  const ptrdiff_t dh = d / heads_;
+  const ptrdiff_t e_count = entities;
+  CMat xin = x;
+  if (pre_ln_) {
+    ln_pre_.forward(params, x, Mat(bufs.xn, n, d), bufs.ln_pre);
+    xin = CMat(bufs.xn, n, d);
+  }
+  qk_.forward(params, xin, Mat(bufs.qk, n, 2 * d));
+  v_.forward(params, xin, Mat(bufs.v, n, d));
+  const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  for (int r = 0; r < rows; ++r) {
+    // De-interleave q = qk[..., 0], k = qk[..., 1] into per-head [E, dh] blocks.
+    for (int e = 0; e < e_count; ++e) {
+      const float* src = bufs.qk + static_cast<ptrdiff_t>(r * e_count + e) * 2 * d;
+      for (int h = 0; h < heads_; ++h) {
+        float* qd = bufs.q + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
+        float* kd = bufs.k + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
+        for (int i = 0; i < dh; ++i) {
+          qd[i] = src[(h * dh + i) * 2];
+          kd[i] = src[(h * dh + i) * 2 + 1];
+        }
+      }
+    }
+    const float* mask_r = mask + static_cast<ptrdiff_t>(r) * e_count;
+    for (int h = 0; h < heads_; ++h) {
+      const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
+      for (int i = 0; i < e_count; ++i) {
+        float* pi = p + i * e_count;
+        for (int j = 0; j < e_count; ++j) pi[j] = dot(qh + i * dh, kh + j * dh, dh);
+        kernels::masked_softmax(pi, mask_r, scale, e_count, pi);
+        float* o = bufs.att + static_cast<ptrdiff_t>(r * e_count + i) * d + h * dh;
+        std::memset(o, 0, sizeof(float) * dh);
+        for (int j = 0; j < e_count; ++j)
+          if (pi[j] != 0.0f)
+            axpy(pi[j], bufs.v + static_cast<ptrdiff_t>(r * e_count + j) * d + h * dh, o, dh);
+      }
+    }
+  }
+  // res = x + mlp1(att); out = LN_post(res).
+  Mat res(bufs.res, n, d);
+  mlp1_.forward(params, CMat(bufs.att, n, d), res);
+  for (int i = 0; i < n; ++i) add_row(res.row(i), x.row(i), d);
+  if (post_ln_) {
+    ln_post_.forward(params, res, out, bufs.ln_post);
+  } else {
+    copy_mat(res, out);
+  }
+}
+
+void SelfAttention::backward(const float* params, float* grads, CMat x, const float* /*mask*/, int entities,
+                             Buffers& bufs, CMat /*out*/, CMat dout, Mat dx) const {
+  const int n = x.rows;
+  const int rows = n / entities;
+  const int d = width_;
+  const ptrdiff_t dh = d / heads_;
+  const ptrdiff_t e_count = entities;
+  const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  Mat d_res(bufs.d_res, n, d);
+  if (post_ln_) {
+    ln_post_.backward(params, grads, CMat(bufs.res, n, d), bufs.ln_post, dout, d_res);
+  } else {
+    copy_mat(dout, d_res);
+  }
+  mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
+  zero_mat(Mat(bufs.d_v, n, d));
+  for (int r = 0; r < rows; ++r) {
+    for (int h = 0; h < heads_; ++h) {
+      const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      const float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
+      std::memset(bufs.d_qh, 0, sizeof(float) * e_count * dh);
+      std::memset(bufs.d_kh, 0, sizeof(float) * e_count * dh);
+      for (int i = 0; i < e_count; ++i) {
+        const float* pi = p + i * e_count;
+        const float* da = bufs.d_att + static_cast<ptrdiff_t>(r * e_count + i) * d + h * dh;
+        float* dpi = bufs.d_p + i * e_count;
+        // dp[i, j] = da_i . v_j and dv_j += p[i, j] da_i (masked keys have p = 0 and get no gradient).
+        for (int j = 0; j < e_count; ++j) {
+          if (pi[j] == 0.0f) {
+            dpi[j] = 0.0f;
+            continue;
+          }
+          const ptrdiff_t vrow = static_cast<ptrdiff_t>(r * e_count + j) * d + h * dh;
+          dpi[j] = dot(da, bufs.v + vrow, dh);
+          axpy(pi[j], da, bufs.d_v + vrow, dh);
+        }
+        kernels::masked_softmax_backward(pi, dpi, scale, e_count, dpi);
+        // dq_i = sum_j dl[i, j] k_j; dk_j += dl[i, j] q_i.
+        for (int j = 0; j < e_count; ++j) {
+          if (dpi[j] == 0.0f) continue;
+          axpy(dpi[j], kh + j * dh, bufs.d_qh + i * dh, dh);
+          axpy(dpi[j], qh + i * dh, bufs.d_kh + j * dh, dh);
+        }
+      }
+      // Re-interleave into d_qk.
+      for (int e = 0; e < e_count; ++e) {
+        float* dst = bufs.d_qk + static_cast<ptrdiff_t>(r * e_count + e) * 2 * d;
+        for (int i = 0; i < dh; ++i) {
+          dst[(h * dh + i) * 2] = bufs.d_qh[e * dh + i];
+          dst[(h * dh + i) * 2 + 1] = bufs.d_kh[e * dh + i];
+        }
+      }
+    }
+  }
+  CMat xin = pre_ln_ ? CMat(bufs.xn, n, d) : x;
+  Mat d_xn(bufs.d_xn, n, d);
+  qk_.backward_preact(params, grads, xin, CMat(bufs.d_qk, n, 2 * d), d_xn, false);
+  v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
+  if (pre_ln_) {
+    ln_pre_.backward(params, grads, x, bufs.ln_pre, d_xn, dx);
+  } else {
+    copy_mat(d_xn, dx);
+  }
+  for (int i = 0; i < n; ++i) add_row(dx.row(i), d_res.row(i), d);
+}
+
+// ---- Masked mean pooling
+// --------------------------------------------------------------------------------------
+
+void masked_mean_pool(CMat x, const float* mask, int entities, Mat out) {
+  for (int r = 0; r < out.rows; ++r) {
+    const float* m = mask + static_cast<ptrdiff_t>(r) * entities;
+    float msum = 0.0f;
+    for (int e = 0; e < entities; ++e) msum += m[e];
+    float* o = out.row(r);
+    std::memset(o, 0, sizeof(float) * out.cols);
+    for (int e = 0; e < entities; ++e)
+      if (m[e] != 0.0f) axpy(m[e], x.row(r * entities + e), o, out.cols);
+    const float inv = 1.0f / (msum + kPoolEps);
+    for (int i = 0; i < out.cols; ++i) o[i] *= inv;
+  }
+}
+
+void masked_mean_pool_backward(CMat dout, const float* mask, int entities, Mat dx) {
+  for (int r = 0; r < dout.rows; ++r) {
+    const float* m = mask + static_cast<ptrdiff_t>(r) * entities;
+    float msum = 0.0f;
+    for (int e = 0; e < entities; ++e) msum += m[e];
+    const float inv = 1.0f / (msum + kPoolEps);
+    const float* d = dout.row(r);
+    for (int e = 0; e < entities; ++e) {
+      float* o = dx.row(r * entities + e);
+      const float s = m[e] * inv;
+      for (int i = 0; i < dout.cols; ++i) o[i] = s * d[i];
+    }
+  }
+}
+
+// ---- Lstm
+// -----------------------------------------------------------------------------------------------------
+
+void Lstm::Buffers::bind(Arena& arena) {
+  const size_t rows = static_cast<size_t>(sequences) * steps;
+  gates = arena.take(rows * 4 * units);
+  c = arena.take(rows * units);
+  tanh_c = arena.take(rows * units);
+  h = arena.take(rows * units);
+  c_prev = arena.take(rows * units);
+  h_prev = arena.take(rows * units);
+  d_gates = arena.take(rows * 4 * units);
+  dh = arena.take(static_cast<size_t>(sequences) * units);
+  dc = arena.take(static_cast<size_t>(sequences) * units);
+}
+
+Lstm::Lstm(ParamLayout& layout, const std::string& name, int in, int units) : in_(in), units_(units) {
+  w_ = layout.add_kernel_xavier(name + "/w", in + units, 4 * units, static_cast<float>(in + units),
+                                static_cast<float>(4 * units));
+  b_ = layout.add_vector(name + "/b", 4 * units, Init::kZeros);
+}
+
+void Lstm::forward(const float* params, CMat x, int sequences, int steps, const float* reset,
+                   const float* state_in, Buffers& bufs, float* state_out) const {
+  const int u = units_;
+  const int g4 = 4 * u;
+  const int rows = sequences * steps;
+  assert(x.rows == rows && x.cols == in_ && sequences <= bufs.sequences && steps == bufs.steps);
+  const ConstWeights w_x(params + w_, in_, g4);
+  const ConstWeights w_h(params + w_ + static_cast<size_t>(in_) * g4, u, g4);
+  // Input contributions of every step at once.
+  Mat gates(bufs.gates, rows, g4);
+  gates.map().noalias() = x.map() * w_x;
+  for (int r = 0; r < rows; ++r) add_row(gates.row(r), params + b_, g4);
+  for (int t = 0; t < steps; ++t) {
+    // State entering step t: the previous step's, the caller's at t = 0, zero after a reset.
+    for (int b = 0; b < sequences; ++b) {
+      const int row = b * steps + t;
+      float* cp = bufs.c_prev + static_cast<ptrdiff_t>(row) * u;
+      float* hp = bufs.h_prev + static_cast<ptrdiff_t>(row) * u;
+      if ((reset != nullptr && reset[row] != 0.0f) || (t == 0 && state_in == nullptr)) {
+        std::memset(cp, 0, sizeof(float) * u);
+        std::memset(hp, 0, sizeof(float) * u);
+      } else if (t == 0) {
+        std::memcpy(cp, state_in + static_cast<ptrdiff_t>(b) * 2 * u, sizeof(float) * u);
+        std::memcpy(hp, state_in + static_cast<ptrdiff_t>(b) * 2 * u + u, sizeof(float) * u);
+      } else {
+        std::memcpy(cp, bufs.c + static_cast<ptrdiff_t>(row - 1) * u, sizeof(float) * u);
+        std::memcpy(hp, bufs.h + static_cast<ptrdiff_t>(row - 1) * u, sizeof(float) * u);
+      }
+    }
+    // Recurrent contribution for step t (rows t, t + steps, ...), then the cell nonlinearities.
+    Mat gates_t = gates.every(t, steps, sequences);
+    gates_t.map().noalias() += CMat(bufs.h_prev, rows, u).every(t, steps, sequences).map() * w_h;
+    for (int b = 0; b < sequences; ++b) {
+      const ptrdiff_t row = b * steps + t;
+      float* g = bufs.gates + row * g4;
+      kernels::lstm_cell(g, bufs.c_prev + row * u, u, g, bufs.c + row * u, bufs.tanh_c + row * u,
+                         bufs.h + row * u);
+    }
+  }
+  if (state_out != nullptr) {
+    for (int b = 0; b < sequences; ++b) {
+      const ptrdiff_t row = b * steps + steps - 1;
+      std::memcpy(state_out + static_cast<ptrdiff_t>(b) * 2 * u, bufs.c + row * u, sizeof(float) * u);
+      std::memcpy(state_out + static_cast<ptrdiff_t>(b) * 2 * u + u, bufs.h + row * u, sizeof(float) * u);
+    }
+  }
+}
+
+void Lstm::backward(const float* params, float* grads, CMat x, int sequences, int steps, const float* reset,
+                    Buffers& bufs, CMat dh, Mat dx) const {
+  const int u = units_;
+  const int g4 = 4 * u;
+  const int rows = sequences * steps;
+  const ConstWeights w_x(params + w_, in_, g4);
+  const ConstWeights w_h(params + w_ + static_cast<size_t>(in_) * g4, u, g4);
+  Mat dh_carry(bufs.dh, sequences, u);
+  Mat dc_carry(bufs.dc, sequences, u);
+  zero_mat(dh_carry);
+  zero_mat(dc_carry);
+  Mat d_gates(bufs.d_gates, rows, g4);
+  for (int t = steps - 1; t >= 0; --t) {
+    for (int b = 0; b < sequences; ++b) {
+      const ptrdiff_t row = b * steps + t;
+      float* dhb = dh_carry.row(b);
+      float* dcb = dc_carry.row(b);
+      add_row(dhb, dh.row(static_cast<int>(row)), u);
+      kernels::lstm_cell_backward(bufs.gates + row * g4, bufs.c_prev + row * u, bufs.tanh_c + row * u, dhb,
+                                  dcb, u, d_gates.row(static_cast<int>(row)), dcb);
+    }
+    // Gradient w.r.t. the state entering step t; nothing flows past a reset (or out of the chunk).
+    if (t == 0) break;
+    dh_carry.map().noalias() = d_gates.every(t, steps, sequences).map() * w_h.transpose();
+    for (int b = 0; b < sequences; ++b) {
+      if (reset != nullptr && reset[b * steps + t] != 0.0f) {
+        std::memset(dh_carry.row(b), 0, sizeof(float) * u);
+        std::memset(dc_carry.row(b), 0, sizeof(float) * u);
+      }
+    }
+  }
+  Weights(grads + w_, in_, g4).noalias() += x.map().transpose() * d_gates.map();
+  Weights(grads + w_ + static_cast<size_t>(in_) * g4, u, g4).noalias() +=
+      CMat(bufs.h_prev, rows, u).map().transpose() * d_gates.map();
+  add_col_sums(grads + b_, d_gates);
+  if (!dx.empty()) dx.map().noalias() = d_gates.map() * w_x.transpose();
+}
+
+}  // namespace hns::nn

@@ -1,0 +1,195 @@
+#include "nn/nn_bench.hpp"
+
+#include "nn/adam.hpp"
+
+#include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/parallel_for.h>
+
+#include <algorithm>
+#include <chrono>
+#include <stdexcept>
+#include <vector>
+
+namespace hns::nn {
+namespace {
+
+constexpr int kMaxLossRows = 64;  // loss scratch rows on the stack
+
+// Synthetic observations for `rows` agent-steps: values in plausible ranges, about 60 % of entities seen, the
+// last box slot absent (padding) in every other row, resets at about 1 in 20 steps.
+struct SyntheticObs {
+  std::vector<float> self, lidar, agents, boxes, ramps;
+  std::vector<float> agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present, reset;
+
+  SyntheticObs(const ObsShape& s, int rows, uint64_t seed) {
+    InitRng rng(seed, 1);
+    auto fill = [&](std::vector<float>& v, size_t n, double lo, double hi) {
+      v.resize(n);
+      for (auto& x : v) x = static_cast<float>(lo + (hi - lo) * rng.uniform());
+    };
+    auto mask = [&](std::vector<float>& v, size_t n, double p) {
+      v.resize(n);
+      for (auto& x : v) x = rng.uniform() < p ? 1.0f : 0.0f;
+    };
+    const size_t r = rows;
+    fill(self, r * s.self_features, -3.0, 3.0);
+    fill(lidar, r * s.lidar_rays, 0.0, 6.0);
+    fill(agents, r * s.num_other_agents() * s.agent_features, -3.0, 3.0);
+    fill(boxes, r * s.max_boxes * s.box_features, -3.0, 3.0);
+    fill(ramps, r * s.max_ramps * s.ramp_features, -3.0, 3.0);
+    mask(agents_seen, r * s.num_other_agents(), 0.6);
+    mask(boxes_seen, r * s.max_boxes, 0.6);
+    mask(ramps_seen, r * s.max_ramps, 0.6);
+    agents_present.assign(r * s.num_other_agents(), 1.0f);
+    boxes_present.assign(r * s.max_boxes, 1.0f);
+    ramps_present.assign(r * s.max_ramps, 1.0f);
+    for (size_t i = 0; i < r; i += 2)
+      if (s.max_boxes > 0)
+        boxes_present[i * s.max_boxes + s.max_boxes - 1] = boxes_seen[i * s.max_boxes + s.max_boxes - 1] =
+            0.0f;
+    mask(reset, r, 0.05);
+  }
+
+  ObsBatch batch() const {
+    ObsBatch b;
+    b.self = self.data();
+    b.lidar = lidar.data();
+    b.agents = agents.data();
+    b.boxes = boxes.data();
+    b.ramps = ramps.data();
+    b.agents_seen = agents_seen.data();
+    b.boxes_seen = boxes_seen.data();
+    b.ramps_seen = ramps_seen.data();
+    b.agents_present = agents_present.data();
+    b.boxes_present = boxes_present.data();
+    b.ramps_present = ramps_present.data();
+    b.reset = reset.data();
+    return b;
+  }
+};
+
+// Median seconds per call of f, after one warm-up call, over at least 3 calls and min_seconds.
+template <class F>
+double median_seconds(double min_seconds, F&& f) {
+  using Clock = std::chrono::steady_clock;
+  f();
+  std::vector<double> times;
+  const auto start = Clock::now();
+  while (times.size() < 3 || std::chrono::duration<double>(Clock::now() - start).count() < min_seconds) {
+    const auto t0 = Clock::now();
+    f();
+    times.push_back(std::chrono::duration<double>(Clock::now() - t0).count());
+  }
+  std::sort(times.begin(), times.end());
+  return times[times.size() / 2];
+}
+
+}  // namespace
+
+NnBenchResult run_nn_bench(const NnBenchOptions& o) {
+  if (o.threads < 1)
+    throw std::invalid_argument("threads must be at least 1 (got " + std::to_string(o.threads) + ")");
+  if (o.infer_agents < 1 || o.train_sequences < 1 || o.train_steps < 1)
+    throw std::invalid_argument("benchmark batch sizes must be positive");
+  const NetConfig cfg = net_preset(o.model);
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(o.threads));
+
+  ActorCritic ac(cfg, o.parallel);
+  ac.params().init(o.seed);
+  NnBenchResult res;
+  res.model = o.model;
+  res.threads = o.threads;
+  res.params = ac.num_params();
+  const int nh = ac.heads().num_heads();
+  const int sw = ac.state_width();
+
+  // A normaliser fitted to the training data.
+  const int train_rows = o.train_sequences * o.train_steps;
+  const SyntheticObs train_obs(cfg.obs, train_rows, o.seed + 1);
+  ObsNormalizer norm(cfg.obs);
+  norm.update(train_obs.self.data(), train_obs.lidar.data(), train_obs.agents.data(), train_obs.boxes.data(),
+              train_obs.ramps.data(), train_rows);
+
+  // Inference: one step for infer_agents agents.
+  {
+    const SyntheticObs obs(cfg.obs, o.infer_agents, o.seed + 2);
+    std::vector<float> ps(static_cast<size_t>(o.infer_agents) * sw, 0.0f), vs(ps.size(), 0.0f);
+    std::vector<float> uniforms(static_cast<size_t>(o.infer_agents) * nh);
+    InitRng rng(o.seed, 3);
+    for (auto& u : uniforms) u = static_cast<float>(rng.uniform());
+    std::vector<int32_t> actions(uniforms.size());
+    std::vector<float> logp(o.infer_agents), value(o.infer_agents);
+    res.infer_seconds = median_seconds(o.min_seconds, [&] {
+      ac.act(norm.view(), obs.batch(), o.infer_agents, ps.data(), vs.data(), uniforms.data(),
+             {actions.data(), logp.data(), value.data(), nullptr});
+    });
+    res.infer_flops_per_agent_step = ac.forward_flops(o.infer_agents) / o.infer_agents;
+    res.infer_agent_steps_per_s = o.infer_agents / res.infer_seconds;
+    res.infer_gflops = res.infer_flops_per_agent_step * res.infer_agent_steps_per_s * 1e-9;
+  }
+
+  // Training: forward + backward + Adam over the minibatch, with a PPO-like loss.
+  {
+    std::vector<int32_t> actions(static_cast<size_t>(train_rows) * nh);
+    std::vector<float> adv(train_rows), target(train_rows);
+    InitRng rng(o.seed, 4);
+    for (size_t i = 0; i < actions.size(); ++i)
+      actions[i] = static_cast<int32_t>(rng.uniform() * ac.heads().sizes()[i % nh]);
+    for (int i = 0; i < train_rows; ++i) {
+      adv[i] = static_cast<float>(rng.normal());
+      target[i] = static_cast<float>(rng.normal());
+    }
+    const CategoricalHeads& heads = ac.heads();
+    const float inv_rows = 1.0f / static_cast<float>(train_rows);
+    LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
+      float lp[kMaxLossRows], ent[kMaxLossRows], dlp[kMaxLossRows], dent[kMaxLossRows];
+      for (int first = 0; first < out.rows; first += kMaxLossRows) {
+        const int n = std::min(kMaxLossRows, out.rows - first);
+        const int32_t* a = actions.data() + static_cast<ptrdiff_t>(out.first_row + first) * nh;
+        const CMat logits = out.logits.block_rows(first, n);
+        heads.log_prob_entropy(logits, a, lp, ent);
+        for (int i = 0; i < n; ++i) {
+          const int row = out.first_row + first + i;
+          dlp[i] = -adv[row] * inv_rows;
+          dent[i] = -0.01f * inv_rows;
+          const float diff = out.value[first + i] - target[row];
+          g.d_value[first + i] = diff * inv_rows;
+          stats[0] += -lp[i] * adv[row] - 0.01 * ent[i] + 0.5 * diff * diff;
+        }
+        heads.backward(logits, a, dlp, dent, g.d_logits.block_rows(first, n));
+      }
+    };
+    AdamConfig acfg;
+    acfg.max_grad_norm = 5.0f;
+    acfg.weight_decay = 1e-6f;
+    Adam adam(ac.params().layout(), acfg);
+    std::vector<double> stats(1);
+    res.train_seconds = median_seconds(o.min_seconds, [&] {
+      ac.forward_backward(norm.view(), train_obs.batch(), o.train_sequences, o.train_steps, nullptr, nullptr,
+                          loss, stats, ac.params().grads());
+      adam.step(ac.params().values(), ac.params().grads());
+    });
+    res.train_flops_per_agent_step = 3.0 * ac.forward_flops(train_rows) / train_rows;
+    res.train_agent_steps_per_s = train_rows / res.train_seconds;
+    res.train_gflops = res.train_flops_per_agent_step * res.train_agent_steps_per_s * 1e-9;
+  }
+
+  // Eigen GEMM reference: one independent product per thread.
+  {
+    const int m = 2560, k = 256, n = 1024;
+    using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    std::vector<RowMat> a(o.threads), b(o.threads), c(o.threads);
+    for (int t = 0; t < o.threads; ++t) {
+      a[t] = RowMat::Random(m, k);
+      b[t] = RowMat::Random(k, n);
+      c[t] = RowMat::Zero(m, n);
+    }
+    const double seconds = median_seconds(o.min_seconds, [&] {
+      tbb::parallel_for(0, o.threads, [&](int t) { c[t].noalias() = a[t] * b[t]; });
+    });
+    res.gemm_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
+  }
+  return res;
+}
+
+}  // namespace hns::nn

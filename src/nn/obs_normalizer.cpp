@@ -1,0 +1,94 @@
+#include "nn/obs_normalizer.hpp"
+
+#include "nn/entity_net.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hns::nn {
+
+ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
+  features_ = {shape.self_features, 1, shape.agent_features, shape.box_features, shape.ramp_features};
+  expanded_ = {shape.self_features, shape.lidar_rays, shape.agent_features, shape.box_features,
+               shape.ramp_features};
+  values_per_row_ = {shape.self_features, shape.lidar_rays, shape.num_other_agents() * shape.agent_features,
+                     shape.max_boxes * shape.box_features, shape.max_ramps * shape.ramp_features};
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    biased_mean_[k].assign(features_[k], 0.0);
+    biased_sq_[k].assign(features_[k], 0.0);
+    mean_f_[k].assign(std::max(expanded_[k], 1), 0.0f);
+    inv_std_f_[k].assign(std::max(expanded_[k], 1), 1.0f);
+  }
+}
+
+void ObsNormalizer::update(const float* self, const float* lidar, const float* agents, const float* boxes,
+                           const float* ramps, int rows) {
+  const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps};
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    if (data[k] == nullptr || rows == 0) continue;
+    const int f = features_[k];
+    if (values_per_row_[k] == 0) continue;
+    const size_t count = static_cast<size_t>(rows) * values_per_row_[k] / f;
+    std::vector<double> sum(f, 0.0);
+    std::vector<double> sq(f, 0.0);
+    for (size_t i = 0; i < count; ++i) {
+      for (int j = 0; j < f; ++j) {
+        const double v = data[k][i * f + j];
+        sum[j] += v;
+        sq[j] += v * v;
+      }
+    }
+    for (int j = 0; j < f; ++j) {
+      biased_mean_[k][j] = beta_ * biased_mean_[k][j] + (1.0 - beta_) * sum[j] / static_cast<double>(count);
+      biased_sq_[k][j] = beta_ * biased_sq_[k][j] + (1.0 - beta_) * sq[j] / static_cast<double>(count);
+    }
+    debias_[k] = beta_ * debias_[k] + (1.0 - beta_);
+  }
+  refresh();
+}
+
+double ObsNormalizer::mean(ObsKey key, int feature) const {
+  return debias_[key] > 0.0 ? biased_mean_[key][feature] / debias_[key] : 0.0;
+}
+
+double ObsNormalizer::std(ObsKey key, int feature) const {
+  if (debias_[key] <= 0.0) return 1.0;
+  const double m = mean(key, feature);
+  const double sq = biased_sq_[key][feature] / debias_[key];
+  return std::sqrt(std::max(sq - m * m, kObsNormVarFloor));
+}
+
+void ObsNormalizer::refresh() {
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    for (int i = 0; i < expanded_[k]; ++i) {
+      const int j = k == kObsLidar ? 0 : i;
+      mean_f_[k][i] = static_cast<float>(mean(static_cast<ObsKey>(k), j));
+      inv_std_f_[k][i] = static_cast<float>(1.0 / std(static_cast<ObsKey>(k), j));
+    }
+  }
+}
+
+void ObsNormalizer::set_state(const std::array<std::vector<double>, kNumObsKeys>& biased_mean,
+                              const std::array<std::vector<double>, kNumObsKeys>& biased_sq,
+                              const std::array<double, kNumObsKeys>& debias) {
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    HNS_NN_CHECK(
+        biased_mean[k].size() == biased_mean_[k].size() && biased_sq[k].size() == biased_sq_[k].size(),
+        "observation normaliser state has the wrong feature count");
+  }
+  biased_mean_ = biased_mean;
+  biased_sq_ = biased_sq;
+  debias_ = debias;
+  refresh();
+}
+
+ObsNormView ObsNormalizer::view() const {
+  ObsNormView v;
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    v.mean[k] = mean_f_[k].data();
+    v.inv_std[k] = inv_std_f_[k].data();
+  }
+  return v;
+}
+
+}  // namespace hns::nn

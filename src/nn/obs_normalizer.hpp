@@ -1,0 +1,70 @@
+// Running observation statistics (SPEC.md §10.2 EMAMeanStd): per-feature debiased EMA of the mean and of the
+// mean square, beta 0.99999, one update per batch; std = sqrt(max(E[x^2] - mean^2, 1e-2)). The networks
+// normalise with x_hat = clip((x - mean) / std, -5, 5) in a fused SIMD kernel (kernels::normalize_obs),
+// reading the float mean and 1/std arrays of ObsNormView.
+//
+// Features per key: self [self_features], agents [agent_features], boxes [box_features], ramps
+// [ramp_features] (shared by every entity of the type), lidar: one channel shared by all rays (the original's
+// lidar is [30, 1] and normalises over its last axis); its arrays are expanded to [lidar_rays] for the
+// kernel. Before the first update the view is the identity (mean 0, 1/std 1).
+#pragma once
+
+#include "nn/tensor.hpp"
+
+#include <array>
+#include <vector>
+
+namespace hns::nn {
+
+struct ObsShape;
+
+enum ObsKey : int { kObsSelf = 0, kObsLidar, kObsAgents, kObsBoxes, kObsRamps, kNumObsKeys };
+
+// Float arrays the forward pass reads; valid while the normaliser lives and is not updated.
+struct ObsNormView {
+  std::array<const float*, kNumObsKeys> mean{};     // [features of the key]
+  std::array<const float*, kNumObsKeys> inv_std{};  // [features of the key]
+};
+
+inline constexpr double kObsNormBeta = 0.99999;
+inline constexpr double kObsNormVarFloor = 1e-2;
+
+class ObsNormalizer {
+ public:
+  explicit ObsNormalizer(const ObsShape& shape, double beta = kObsNormBeta);
+
+  // One EMA update from `rows` agent-steps of raw observations (every row and entity slot counts, padding
+  // included, as in the original). Pointers as in NetInputs; a null key is skipped (its statistics and debias
+  // term unchanged). Deterministic (sums in index order, in double).
+  void update(const float* self, const float* lidar, const float* agents, const float* boxes,
+              const float* ramps, int rows);
+
+  ObsNormView view() const;
+  int features(ObsKey key) const { return features_[key]; }
+  // Current mean and std of one feature (double precision).
+  double mean(ObsKey key, int feature) const;
+  double std(ObsKey key, int feature) const;
+  double debias(ObsKey key) const { return debias_[key]; }
+
+  // Checkpoint state: biased EMA of the mean and of the square per key, and each key's debias term.
+  const std::vector<double>& biased_mean(ObsKey key) const { return biased_mean_[key]; }
+  const std::vector<double>& biased_sq(ObsKey key) const { return biased_sq_[key]; }
+  void set_state(const std::array<std::vector<double>, kNumObsKeys>& biased_mean,
+                 const std::array<std::vector<double>, kNumObsKeys>& biased_sq,
+                 const std::array<double, kNumObsKeys>& debias);
+
+ private:
+  void refresh();
+
+  double beta_;
+  std::array<double, kNumObsKeys> debias_{};       // per key, sum of (1 - beta) beta^k: the debiasing divisor
+  std::array<int, kNumObsKeys> features_{};        // features per key (lidar: 1 channel)
+  std::array<int, kNumObsKeys> expanded_{};        // length of the float arrays (lidar: rays)
+  std::array<int, kNumObsKeys> values_per_row_{};  // floats per agent-step (entities x features)
+  std::array<std::vector<double>, kNumObsKeys> biased_mean_;
+  std::array<std::vector<double>, kNumObsKeys> biased_sq_;
+  std::array<std::vector<float>, kNumObsKeys> mean_f_;
+  std::array<std::vector<float>, kNumObsKeys> inv_std_f_;
+};
+
+}  // namespace hns::nn

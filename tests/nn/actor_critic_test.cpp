@@ -1,0 +1,479 @@
+// The policy and value networks (EntityNet, ActorCritic): parameter counts of the presets, end-to-end
+// gradients, masking, LSTM stepping, determinism across thread counts, and a short training run that learns.
+#include "nn/actor_critic.hpp"
+#include "nn/adam.hpp"
+
+#include "test_util.hpp"
+
+#include <gtest/gtest.h>
+#include <oneapi/tbb/global_control.h>
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+namespace hns::nn {
+namespace {
+
+using testing::random_mask;
+using testing::random_vector;
+
+// A network with the paper's structure and tiny widths (fast to check exhaustively).
+NetConfig tiny_config() {
+  NetConfig c;
+  c.obs.self_features = 4;
+  c.obs.max_agents = 3;
+  c.obs.agent_features = 3;
+  c.obs.max_boxes = 2;
+  c.obs.box_features = 5;
+  c.obs.max_ramps = 1;
+  c.obs.ramp_features = 4;
+  c.obs.lidar_rays = 8;
+  c.lidar_filters = 3;
+  c.embed = 8;
+  c.heads = 2;
+  c.dense = 10;
+  c.lstm = 6;
+  c.action_heads = {3, 2};
+  return c;
+}
+
+// Random observations for `rows` agent-steps; present masks have padding slots, seen masks are subsets.
+struct ObsData {
+  std::vector<float> self, lidar, agents, boxes, ramps;
+  std::vector<float> agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present, reset;
+  ObsData(const ObsShape& s, int rows, uint64_t seed, double p_reset = 0.15) {
+    const int na = s.num_other_agents();
+    self = random_vector(static_cast<size_t>(rows) * s.self_features, seed + 1, -2.0f, 2.0f);
+    lidar = random_vector(static_cast<size_t>(rows) * s.lidar_rays, seed + 2, 0.0f, 6.0f);
+    agents = random_vector(static_cast<size_t>(rows) * na * s.agent_features, seed + 3, -2.0f, 2.0f);
+    boxes = random_vector(static_cast<size_t>(rows) * s.max_boxes * s.box_features, seed + 4, -2.0f, 2.0f);
+    ramps = random_vector(static_cast<size_t>(rows) * s.max_ramps * s.ramp_features, seed + 5, -2.0f, 2.0f);
+    agents_present.assign(static_cast<size_t>(rows) * na, 1.0f);
+    boxes_present.assign(static_cast<size_t>(rows) * s.max_boxes, 1.0f);
+    ramps_present.assign(static_cast<size_t>(rows) * s.max_ramps, 1.0f);
+    for (int r = 0; r < rows; ++r) {
+      if (r % 3 == 0 && na > 0) agents_present[static_cast<size_t>(r) * na + na - 1] = 0.0f;
+      if (r % 2 == 0 && s.max_boxes > 0)
+        boxes_present[static_cast<size_t>(r) * s.max_boxes + s.max_boxes - 1] = 0.0f;
+    }
+    agents_seen = random_mask(agents_present.size(), seed + 6, 0.6);
+    boxes_seen = random_mask(boxes_present.size(), seed + 7, 0.6);
+    ramps_seen = random_mask(ramps_present.size(), seed + 8, 0.6);
+    for (size_t i = 0; i < agents_seen.size(); ++i) agents_seen[i] *= agents_present[i];
+    for (size_t i = 0; i < boxes_seen.size(); ++i) boxes_seen[i] *= boxes_present[i];
+    reset = random_mask(rows, seed + 9, p_reset);
+  }
+  ObsBatch batch() const {
+    ObsBatch b;
+    b.self = self.data();
+    b.lidar = lidar.data();
+    b.agents = agents.data();
+    b.boxes = boxes.data();
+    b.ramps = ramps.data();
+    b.agents_seen = agents_seen.data();
+    b.boxes_seen = boxes_seen.data();
+    b.ramps_seen = ramps_seen.data();
+    b.agents_present = agents_present.data();
+    b.boxes_present = boxes_present.data();
+    b.ramps_present = ramps_present.data();
+    b.reset = reset.data();
+    return b;
+  }
+};
+
+// A normaliser that has seen the data once (so normalisation is not the identity).
+ObsNormalizer fitted_normalizer(const ObsShape& s, const ObsData& d, int rows) {
+  ObsNormalizer n(s);
+  n.update(d.self.data(), d.lidar.data(), d.agents.data(), d.boxes.data(), d.ramps.data(), rows);
+  return n;
+}
+
+bool same_bits(const float* a, const float* b, size_t n) {
+  return std::memcmp(a, b, n * sizeof(float)) == 0;
+}
+
+TEST(NnNetwork, PaperPresetHasAboutOnePointSixMillionParameters) {
+  ActorCritic ac(net_preset("paper"));
+  // SPEC.md §10.3: about 1.63 M (policy about 818 k of which the LSTM is 525 k, value about 809 k); ours has
+  // 11 self and agent features (yaw as cos/sin) instead of 10.
+  EXPECT_NEAR(static_cast<double>(ac.num_params()), 1.63e6, 0.02 * 1.63e6);
+  EXPECT_EQ(ac.num_params(), 1627502u);
+  EXPECT_EQ(
+      ac.params().layout().find("policy/lstm/w")->size() + ac.params().layout().find("policy/lstm/b")->size(),
+      525312u);
+  EXPECT_EQ(ac.heads().num_logits(), 37);
+  ActorCritic small(net_preset("small"));
+  EXPECT_LT(small.num_params(), ac.num_params() / 3);
+  EXPECT_THROW(net_preset("huge"), std::invalid_argument);
+}
+
+TEST(NnNetwork, InitialisationFollowsSpec) {
+  ActorCritic ac(net_preset("paper"));
+  ac.params().init(5);
+  // Policy logits: normc std 0.01 (each output column has norm 0.01); value head and LSTM: Xavier uniform.
+  const auto logits = ac.params().slice("policy/logits/w");
+  for (int c = 0; c < 37; c += 9) {
+    double ss = 0.0;
+    for (int r = 0; r < 256; ++r) ss += logits[r * 37 + c] * logits[r * 37 + c];
+    EXPECT_NEAR(std::sqrt(ss), 0.01, 1e-6);
+  }
+  const auto lstm = ac.params().slice("value/lstm/w");
+  const float limit = std::sqrt(6.0f / (512 + 1024));
+  float mx = 0.0f;
+  for (float v : lstm) mx = std::max(mx, std::fabs(v));
+  EXPECT_LE(mx, limit);
+  EXPECT_GT(mx, 0.95f * limit);
+  // Attention QK: N(0, sqrt(0.125 / 128)).
+  const auto qk = ac.params().slice("policy/attention/qk/w");
+  double ss = 0.0;
+  for (float v : qk) ss += static_cast<double>(v) * v;
+  EXPECT_NEAR(std::sqrt(ss / qk.size()), std::sqrt(0.125 / 128), 0.002);
+  for (float v : ac.params().slice("policy/cat_norm/gain")) EXPECT_EQ(v, 1.0f);
+  for (float v : ac.params().slice("policy/lstm/b")) EXPECT_EQ(v, 0.0f);
+}
+
+// Gradient of L = sum w_l * logits + sum w_v * value through ActorCritic::forward_backward (two chunks in two
+// groups), against float central differences, slice by slice.
+TEST(NnNetwork, EndToEndGradientMatchesFiniteDifferences) {
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 2;
+  par.grad_groups = 2;
+  ActorCritic ac(cfg, par);
+  ac.params().init(3);
+  // Non-trivial gains and biases.
+  auto jitter = random_vector(ac.params().buffer_floats(), 4, -0.2f, 0.2f);
+  for (size_t i = 0; i < jitter.size(); ++i) ac.params().values()[i] += jitter[i];
+  const int seqs = 4, steps = 3, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 100);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const auto state_p = random_vector(seqs * ac.state_width(), 5);
+  const auto state_v = random_vector(seqs * ac.state_width(), 6);
+  const int nl = ac.heads().num_logits();
+  const auto w_logits = random_vector(rows * nl, 7);
+  const auto w_value = random_vector(rows, 8);
+  double loss_value = 0.0;
+  LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
+    for (int r = 0; r < out.rows; ++r) {
+      for (int k = 0; k < nl; ++k) {
+        g.d_logits.at(r, k) = w_logits[(out.first_row + r) * nl + k];
+        stats[0] += static_cast<double>(g.d_logits.at(r, k)) * out.logits.at(r, k);
+      }
+      g.d_value[r] = w_value[out.first_row + r];
+      stats[0] += static_cast<double>(w_value[out.first_row + r]) * out.value[r];
+    }
+  };
+  std::vector<float> grads(ac.params().buffer_floats());
+  std::vector<double> stats(1);
+  auto eval = [&]() {
+    ac.forward_backward(norm.view(), data.batch(), seqs, steps, state_p.data(), state_v.data(), loss, stats,
+                        grads.data());
+    return stats[0];
+  };
+  loss_value = eval();
+  const std::vector<float> analytic = grads;
+  float* p = ac.params().values();
+  // Central differences with a small step: ReLU kinks crossed by the perturbation bias larger steps (the
+  // error shrinks linearly with the step), float rounding limits smaller ones to a few 1e-3. Coordinates
+  // where two step sizes disagree sit on a kink and are skipped.
+  auto central = [&](size_t k, float h) {
+    const float v = p[k];
+    p[k] = v + h;
+    const double lp = eval();
+    p[k] = v - h;
+    const double lm = eval();
+    p[k] = v;
+    return (lp - lm) / (static_cast<double>(v + h) - static_cast<double>(v - h));
+  };
+  int slices_checked = 0, coords = 0, skipped = 0;
+  double total_err2 = 0.0, total_ref2 = 0.0;
+  for (const ParamSlice& s : ac.params().layout().slices()) {
+    double err2 = 0.0, ref2 = 0.0;
+    const size_t step = std::max<size_t>(1, s.size() / 6);
+    for (size_t i = 0; i < s.size(); i += step) {
+      const size_t k = s.offset + i;
+      const double fd1 = central(k, 5e-4f);
+      const double fd2 = central(k, 2.5e-4f);
+      ++coords;
+      if (std::fabs(fd1 - fd2) > 4e-3 + 2e-2 * std::fabs(fd2)) {
+        ++skipped;
+        continue;
+      }
+      err2 += (fd2 - analytic[k]) * (fd2 - analytic[k]);
+      ref2 += fd2 * fd2;
+    }
+    total_err2 += err2;
+    total_ref2 += ref2;
+    if (ref2 < 1e-6) continue;
+    ++slices_checked;
+    EXPECT_LT(std::sqrt(err2), 0.02 * std::sqrt(ref2) + 4e-3) << s.name;
+  }
+  EXPECT_LT(std::sqrt(total_err2), 0.005 * std::sqrt(total_ref2));
+  EXPECT_GT(slices_checked, 50);
+  EXPECT_LT(skipped, coords / 10);
+  EXPECT_GT(slices_checked, 40);
+  EXPECT_NE(loss_value, 0.0);
+}
+
+TEST(NnNetwork, MaskedEntitiesChangeNothing) {
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 3;
+  ActorCritic ac(cfg, par);
+  ac.params().init(9);
+  const int seqs = 6, steps = 2, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 200);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const int nl = ac.heads().num_logits();
+  struct Result {
+    std::vector<float> logits, value, grads;
+  };
+  auto run = [&](const ObsData& d) {
+    Result res;
+    res.logits.resize(rows * nl);
+    res.value.resize(rows);
+    res.grads.resize(ac.params().buffer_floats());
+    std::vector<double> stats;
+    ac.forward_backward(
+        norm.view(), d.batch(), seqs, steps, nullptr, nullptr,
+        [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+          for (int r = 0; r < out.rows; ++r) {
+            for (int k = 0; k < nl; ++k) {
+              res.logits[(out.first_row + r) * nl + k] = out.logits.at(r, k);
+              g.d_logits.at(r, k) = 0.1f * static_cast<float>(k + 1);
+            }
+            res.value[out.first_row + r] = out.value[r];
+            g.d_value[r] = 1.0f;
+          }
+        },
+        stats, res.grads.data());
+    return res;
+  };
+  const Result base = run(data);
+  // Scramble the features of every entity the policy does not see: the policy ignores them, the value net
+  // still sees those that are present.
+  ObsData unseen = data;
+  const ObsShape& s = cfg.obs;
+  for (size_t i = 0; i < unseen.agents_seen.size(); ++i)
+    if (unseen.agents_seen[i] == 0.0f)
+      for (int f = 0; f < s.agent_features; ++f) unseen.agents[i * s.agent_features + f] = 1e5f + f;
+  for (size_t i = 0; i < unseen.boxes_seen.size(); ++i)
+    if (unseen.boxes_seen[i] == 0.0f)
+      for (int f = 0; f < s.box_features; ++f) unseen.boxes[i * s.box_features + f] = -3e4f * f;
+  const Result r1 = run(unseen);
+  EXPECT_TRUE(same_bits(base.logits.data(), r1.logits.data(), base.logits.size()));
+  EXPECT_FALSE(same_bits(base.value.data(), r1.value.data(), base.value.size()));
+  // Scramble only absent (padding) slots: nothing changes anywhere, gradients included.
+  ObsData padding = data;
+  for (size_t i = 0; i < padding.agents_present.size(); ++i)
+    if (padding.agents_present[i] == 0.0f)
+      for (int f = 0; f < s.agent_features; ++f) padding.agents[i * s.agent_features + f] = 7e6f;
+  for (size_t i = 0; i < padding.boxes_present.size(); ++i)
+    if (padding.boxes_present[i] == 0.0f)
+      for (int f = 0; f < s.box_features; ++f) padding.boxes[i * s.box_features + f] = NAN;
+  const Result r2 = run(padding);
+  EXPECT_TRUE(same_bits(base.logits.data(), r2.logits.data(), base.logits.size()));
+  EXPECT_TRUE(same_bits(base.value.data(), r2.value.data(), base.value.size()));
+  EXPECT_TRUE(same_bits(base.grads.data(), r2.grads.data(), base.grads.size()));
+  // The value net ignores visibility; the policy does not.
+  ObsData blind = data;
+  std::fill(blind.agents_seen.begin(), blind.agents_seen.end(), 0.0f);
+  const Result r3 = run(blind);
+  EXPECT_TRUE(same_bits(base.value.data(), r3.value.data(), base.value.size()));
+  EXPECT_FALSE(same_bits(base.logits.data(), r3.logits.data(), base.logits.size()));
+}
+
+TEST(NnNetwork, ChunkOfTenStepsEqualsTenActSteps) {
+  NetConfig cfg = net_preset("small");
+  ParallelConfig par;
+  par.infer_chunk_agents = 5;
+  par.train_chunk_sequences = 4;
+  ActorCritic ac(cfg, par);
+  ac.params().init(11);
+  const int agents = 7, steps = 10, rows = agents * steps;
+  const ObsData data(cfg.obs, rows, 300, 0.1);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const int nl = ac.heads().num_logits(), nh = ac.heads().num_heads(), sw = ac.state_width();
+  // Training-path forward over 10-step sequences (row = agent * steps + t).
+  std::vector<float> logits_chunk(rows * nl), value_chunk(rows);
+  std::vector<double> stats;
+  std::vector<float> grads(ac.params().buffer_floats());
+  ac.forward_backward(
+      norm.view(), data.batch(), agents, steps, nullptr, nullptr,
+      [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+        for (int r = 0; r < out.rows; ++r) {
+          std::memcpy(&logits_chunk[(out.first_row + r) * nl], out.logits.row(r), nl * sizeof(float));
+          value_chunk[out.first_row + r] = out.value[r];
+          for (int k = 0; k < nl; ++k) g.d_logits.at(r, k) = 0.0f;
+          g.d_value[r] = 0.0f;
+        }
+      },
+      stats, grads.data());
+  // Inference path, one step at a time with carried states, gathering step t of every agent.
+  std::vector<float> ps(agents * sw, 0.0f), vs(agents * sw, 0.0f);
+  const std::vector<float> uniforms(agents * nh, 0.5f);
+  std::vector<int32_t> actions(agents * nh);
+  std::vector<float> logp(agents), value(agents), logits(agents * nl);
+  double worst = 0.0;
+  for (int t = 0; t < steps; ++t) {
+    ObsData step(cfg.obs, agents, 0);
+    auto gather = [&](const std::vector<float>& src, std::vector<float>& dst, size_t per_row) {
+      for (int a = 0; a < agents; ++a)
+        std::memcpy(&dst[a * per_row], &src[(a * steps + t) * per_row], per_row * sizeof(float));
+    };
+    const ObsShape& s = cfg.obs;
+    gather(data.self, step.self, s.self_features);
+    gather(data.lidar, step.lidar, s.lidar_rays);
+    gather(data.agents, step.agents, s.num_other_agents() * s.agent_features);
+    gather(data.boxes, step.boxes, s.max_boxes * s.box_features);
+    gather(data.ramps, step.ramps, s.max_ramps * s.ramp_features);
+    gather(data.agents_seen, step.agents_seen, s.num_other_agents());
+    gather(data.boxes_seen, step.boxes_seen, s.max_boxes);
+    gather(data.ramps_seen, step.ramps_seen, s.max_ramps);
+    gather(data.agents_present, step.agents_present, s.num_other_agents());
+    gather(data.boxes_present, step.boxes_present, s.max_boxes);
+    gather(data.ramps_present, step.ramps_present, s.max_ramps);
+    gather(data.reset, step.reset, 1);
+    ac.act(norm.view(), step.batch(), agents, ps.data(), vs.data(), uniforms.data(),
+           {actions.data(), logp.data(), value.data(), logits.data()});
+    for (int a = 0; a < agents; ++a) {
+      for (int k = 0; k < nl; ++k)
+        worst = std::max(worst, static_cast<double>(
+                                    std::fabs(logits[a * nl + k] - logits_chunk[(a * steps + t) * nl + k])));
+      worst = std::max(worst, static_cast<double>(std::fabs(value[a] - value_chunk[a * steps + t])));
+    }
+  }
+  EXPECT_LT(worst, 2e-5);
+}
+
+TEST(NnNetwork, BitIdenticalForAnyThreadCount) {
+  NetConfig cfg = tiny_config();
+  cfg.embed = 16;
+  cfg.dense = 24;
+  cfg.lstm = 20;
+  ParallelConfig par;
+  par.infer_chunk_agents = 8;
+  par.train_chunk_sequences = 3;
+  par.grad_groups = 4;
+  const int agents = 61, seqs = 23, steps = 5;
+  const ObsData obs_act(cfg.obs, agents, 400);
+  const ObsData obs_train(cfg.obs, seqs * steps, 500);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, obs_train, seqs * steps);
+  struct Result {
+    std::vector<int32_t> actions;
+    std::vector<float> logp, value, ps, vs, grads, params;
+    std::vector<double> stats;
+  };
+  auto run = [&](int threads) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    ActorCritic ac(cfg, par);
+    ac.params().init(13);
+    Result r;
+    const int nh = ac.heads().num_heads(), sw = ac.state_width();
+    r.actions.resize(agents * nh);
+    r.logp.resize(agents);
+    r.value.resize(agents);
+    r.ps = random_vector(agents * sw, 14);
+    r.vs = random_vector(agents * sw, 15);
+    const auto uniforms = random_vector(agents * nh, 16, 0.0f, 1.0f);
+    ac.act(norm.view(), obs_act.batch(), agents, r.ps.data(), r.vs.data(), uniforms.data(),
+           {r.actions.data(), r.logp.data(), r.value.data(), nullptr});
+    // A PPO-like loss: -logp(actions) * adv - 0.01 entropy + 0.5 (v - target)^2.
+    const auto adv = random_vector(seqs * steps, 17);
+    const auto target = random_vector(seqs * steps, 18);
+    std::vector<int32_t> train_actions(seqs * steps * nh);
+    for (size_t i = 0; i < train_actions.size(); ++i) train_actions[i] = static_cast<int32_t>(i % 2);
+    r.stats.resize(2);
+    r.grads.resize(ac.params().buffer_floats());
+    const CategoricalHeads& heads = ac.heads();
+    ac.forward_backward(
+        norm.view(), obs_train.batch(), seqs, steps, nullptr, nullptr,
+        [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
+          std::vector<float> lp(out.rows), ent(out.rows), dlp(out.rows), dent(out.rows, -0.01f);
+          const int32_t* a = train_actions.data() + static_cast<ptrdiff_t>(out.first_row) * nh;
+          heads.log_prob_entropy(out.logits, a, lp.data(), ent.data());
+          for (int i = 0; i < out.rows; ++i) {
+            dlp[i] = -adv[out.first_row + i];
+            const float diff = out.value[i] - target[out.first_row + i];
+            g.d_value[i] = diff;
+            stats[0] += -lp[i] * adv[out.first_row + i];
+            stats[1] += 0.5 * diff * diff;
+          }
+          heads.backward(out.logits, a, dlp.data(), dent.data(), g.d_logits);
+        },
+        r.stats, r.grads.data());
+    Adam adam(ac.params().layout(), {});
+    adam.step(ac.params().values(), r.grads.data());
+    r.params.assign(ac.params().values(), ac.params().values() + ac.params().buffer_floats());
+    return r;
+  };
+  const Result one = run(1);
+  for (int threads : {2, 3}) {
+    const Result many = run(threads);
+    EXPECT_EQ(one.actions, many.actions) << threads << " threads";
+    EXPECT_TRUE(same_bits(one.logp.data(), many.logp.data(), one.logp.size()));
+    EXPECT_TRUE(same_bits(one.value.data(), many.value.data(), one.value.size()));
+    EXPECT_TRUE(same_bits(one.ps.data(), many.ps.data(), one.ps.size()));
+    EXPECT_TRUE(same_bits(one.vs.data(), many.vs.data(), one.vs.size()));
+    EXPECT_TRUE(same_bits(one.grads.data(), many.grads.data(), one.grads.size()));
+    EXPECT_TRUE(same_bits(one.params.data(), many.params.data(), one.params.size()));
+    EXPECT_EQ(one.stats, many.stats);
+  }
+  double norm2 = 0.0;
+  for (float g : one.grads) norm2 += static_cast<double>(g) * g;
+  EXPECT_GT(norm2, 0.0);
+}
+
+// A few hundred Adam steps on a fixed batch: the value net fits its targets and the policy raises the
+// probability of the target actions.
+TEST(NnNetwork, TrainingReducesTheLoss) {
+  NetConfig cfg = tiny_config();
+  cfg.embed = 16;
+  cfg.dense = 32;
+  cfg.lstm = 16;
+  ActorCritic ac(cfg);
+  ac.params().init(21);
+  const int seqs = 8, steps = 4, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 600);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const int nh = ac.heads().num_heads();
+  std::vector<float> target(rows);
+  std::vector<int32_t> actions(rows * nh);
+  for (int r = 0; r < rows; ++r) {
+    target[r] = data.self[r * cfg.obs.self_features] > 0.0f ? 1.0f : -1.0f;
+    for (int h = 0; h < nh; ++h) actions[r * nh + h] = (r + h) % ac.heads().sizes()[h];
+  }
+  AdamConfig acfg;
+  acfg.lr = 3e-3f;
+  acfg.max_grad_norm = 5.0f;
+  Adam adam(ac.params().layout(), acfg);
+  std::vector<double> stats(2);
+  auto step = [&]() {
+    ac.forward_backward(
+        norm.view(), data.batch(), seqs, steps, nullptr, nullptr,
+        [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> st) {
+          std::vector<float> lp(out.rows), dlp(out.rows, -1.0f / rows);
+          const int32_t* a = actions.data() + static_cast<ptrdiff_t>(out.first_row) * nh;
+          ac.heads().log_prob_entropy(out.logits, a, lp.data(), nullptr);
+          ac.heads().backward(out.logits, a, dlp.data(), nullptr, g.d_logits);
+          for (int i = 0; i < out.rows; ++i) {
+            const float diff = out.value[i] - target[out.first_row + i];
+            g.d_value[i] = diff / rows;
+            st[0] += -lp[i] / rows;
+            st[1] += 0.5 * diff * diff / rows;
+          }
+        },
+        stats, ac.params().grads());
+    adam.step(ac.params().values(), ac.params().grads());
+    return std::make_pair(stats[0], stats[1]);
+  };
+  const auto first = step();
+  std::pair<double, double> last;
+  for (int i = 0; i < 150; ++i) last = step();
+  EXPECT_LT(last.first, 0.5 * first.first);
+  EXPECT_LT(last.second, 0.2 * first.second);
+}
+
+}  // namespace
+}  // namespace hns::nn

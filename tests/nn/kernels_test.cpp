@@ -1,0 +1,249 @@
+// SIMD kernels equal their scalar reference paths bit for bit, for every tail length 0 .. 2 * width + 1, and
+// agree with plain double-precision formulas.
+#include "nn/kernels.hpp"
+#include "nn/simd.hpp"
+
+#include "test_util.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+namespace hns::nn {
+namespace {
+
+using testing::random_mask;
+using testing::random_vector;
+
+int max_n() {
+  return 2 * kernels::simd_width() + 1;
+}
+
+bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() &&
+         (a.empty() || std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0);
+}
+
+TEST(NnSimd, ExpTanhSigmoidAccuracy) {
+  double worst_exp = 0.0, worst_tanh = 0.0, worst_sig = 0.0;
+  for (int i = -20000; i <= 20000; ++i) {
+    const float x = static_cast<float>(i) * 0.004f;  // [-80, 80]
+    const double e = std::exp(static_cast<double>(x));
+    worst_exp = std::max(worst_exp, std::fabs(simd::exp(x) - e) / e);
+    const float xt = x * 0.1f;
+    worst_tanh = std::max(worst_tanh, std::fabs(simd::tanh(xt) - std::tanh(static_cast<double>(xt))));
+    worst_sig =
+        std::max(worst_sig, std::fabs(simd::sigmoid(xt) - 1.0 / (1.0 + std::exp(-static_cast<double>(xt)))));
+  }
+  EXPECT_LT(worst_exp, 3e-7);
+  EXPECT_LT(worst_tanh, 2e-7);
+  EXPECT_LT(worst_sig, 2e-7);
+  // Relative accuracy of tanh near 0 (the series branch).
+  EXPECT_NEAR(simd::tanh(1e-4f), std::tanh(1e-4), 1e-11);
+  EXPECT_EQ(simd::tanh(-0.5f), -simd::tanh(0.5f));
+  EXPECT_EQ(simd::tanh(30.0f), 1.0f);
+  EXPECT_EQ(simd::exp(-1e10f) * 0.0f, 0.0f);
+}
+
+TEST(NnSimd, VectorAndScalarTranscendentalsAgree) {
+  const int w = simd::kWidth;
+  const auto x = random_vector(w * 64, 3, -20.0f, 20.0f);
+  for (size_t i = 0; i + w <= x.size(); i += w) {
+    const simd::Batch b = simd::Batch::load_unaligned(x.data() + i);
+    float e[simd::kWidth], t[simd::kWidth], s[simd::kWidth];
+    simd::exp(b).store_unaligned(e);
+    simd::tanh(b).store_unaligned(t);
+    simd::sigmoid(b).store_unaligned(s);
+    for (int l = 0; l < w; ++l) {
+      EXPECT_EQ(e[l], simd::exp(x[i + l]));
+      EXPECT_EQ(t[l], simd::tanh(x[i + l]));
+      EXPECT_EQ(s[l], simd::sigmoid(x[i + l]));
+    }
+  }
+}
+
+TEST(NnKernels, NormalizeObsMatchesScalarAndFormula) {
+  for (int n = 0; n <= max_n(); ++n) {
+    const int rows = 5;
+    const auto x = random_vector(rows * n, 10 + n, -30.0f, 30.0f);
+    const auto mean = random_vector(n, 20 + n, -2.0f, 2.0f);
+    const auto inv_std = random_vector(n, 30 + n, 0.1f, 3.0f);
+    auto mask = random_mask(rows, 40 + n);
+    std::vector<float> y(rows * n, 7.0f), ys(rows * n, 7.0f);
+    kernels::normalize_obs(x.data(), mean.data(), inv_std.data(), mask.data(), rows, n, y.data());
+    kernels::normalize_obs_scalar(x.data(), mean.data(), inv_std.data(), mask.data(), rows, n, ys.data());
+    EXPECT_TRUE(same_bits(y, ys)) << "n = " << n;
+    for (int r = 0; r < rows; ++r)
+      for (int f = 0; f < n; ++f) {
+        const double want =
+            mask[r] != 0.0f
+                ? std::clamp((x[r * n + f] - mean[f]) * static_cast<double>(inv_std[f]), -5.0, 5.0)
+                : 0.0;
+        EXPECT_NEAR(y[r * n + f], want, 1e-5);
+      }
+  }
+}
+
+TEST(NnKernels, NormalizeObsMaskedRowsIgnoreGarbage) {
+  const int n = 13;
+  std::vector<float> x(2 * n, 1.0f);
+  for (int f = 0; f < n; ++f) x[n + f] = NAN;
+  std::vector<float> mean(n, 0.0f), inv(n, 1.0f), mask = {1.0f, 0.0f}, y(2 * n);
+  kernels::normalize_obs(x.data(), mean.data(), inv.data(), mask.data(), 2, n, y.data());
+  for (int f = 0; f < n; ++f) {
+    EXPECT_EQ(y[f], 1.0f);
+    EXPECT_EQ(y[n + f], 0.0f);
+  }
+}
+
+TEST(NnKernels, BiasActMatchesScalar) {
+  for (int n = 0; n <= max_n(); ++n) {
+    for (Activation act : {Activation::kNone, Activation::kRelu}) {
+      auto y = random_vector(n, 50 + n);
+      auto ys = y;
+      const auto b = random_vector(n, 60 + n);
+      kernels::bias_act(y.data(), b.data(), act, n);
+      kernels::bias_act_scalar(ys.data(), b.data(), act, n);
+      EXPECT_TRUE(same_bits(y, ys));
+      for (int i = 0; i < n; ++i) EXPECT_GE(y[i], act == Activation::kRelu ? 0.0f : -3.0f);
+    }
+  }
+}
+
+// Plain double softmax with the spec's masking.
+std::vector<double> reference_softmax(const std::vector<float>& l, const std::vector<float>& m,
+                                      double scale) {
+  const size_t n = l.size();
+  std::vector<double> z(n), p(n);
+  double mx = -INFINITY;
+  for (size_t i = 0; i < n; ++i) {
+    z[i] = l[i] * scale - (1.0 - m[i]) * 1e10;
+    mx = std::max(mx, z[i]);
+  }
+  double s = 0.0;
+  for (size_t i = 0; i < n; ++i) {
+    p[i] = std::exp(z[i] - mx) * m[i];
+    s += p[i];
+  }
+  for (size_t i = 0; i < n; ++i) p[i] = p[i] / (s + 1e-10) * m[i];
+  return p;
+}
+
+TEST(NnKernels, MaskedSoftmaxMatchesScalarAndFormula) {
+  for (int n = 0; n <= max_n(); ++n) {
+    const auto l = random_vector(n, 70 + n, -8.0f, 8.0f);
+    auto m = random_mask(n, 80 + n);
+    if (n > 0) m[n / 2] = 1.0f;
+    std::vector<float> p(n), ps(n);
+    kernels::masked_softmax(l.data(), m.data(), 0.7f, n, p.data());
+    kernels::masked_softmax_scalar(l.data(), m.data(), 0.7f, n, ps.data());
+    EXPECT_TRUE(same_bits(p, ps)) << "n = " << n;
+    const auto want = reference_softmax(l, m, 0.7);
+    double sum = 0.0;
+    for (int i = 0; i < n; ++i) {
+      EXPECT_NEAR(p[i], want[i], 1e-6);
+      if (m[i] == 0.0f) {
+        EXPECT_EQ(p[i], 0.0f);
+      }
+      sum += p[i];
+    }
+    if (n > 0) {
+      EXPECT_NEAR(sum, 1.0, 1e-5);
+    }
+    // Backward: scalar equality and the analytic formula against finite differences of the reference.
+    const auto dp = random_vector(n, 90 + n);
+    std::vector<float> dl(n), dls(n);
+    kernels::masked_softmax_backward(p.data(), dp.data(), 0.7f, n, dl.data());
+    kernels::masked_softmax_backward_scalar(p.data(), dp.data(), 0.7f, n, dls.data());
+    EXPECT_TRUE(same_bits(dl, dls));
+    for (int i = 0; i < n; ++i) {
+      if (m[i] == 0.0f) continue;
+      auto lp = l, lm = l;
+      lp[i] += 1e-3f;
+      lm[i] -= 1e-3f;
+      const auto pp = reference_softmax(lp, m, 0.7), pm = reference_softmax(lm, m, 0.7);
+      double fd = 0.0;
+      for (int j = 0; j < n; ++j) fd += dp[j] * (pp[j] - pm[j]) / (lp[i] - static_cast<double>(lm[i]));
+      EXPECT_NEAR(dl[i], fd, 1e-4);
+    }
+  }
+}
+
+TEST(NnKernels, MaskedSoftmaxAllMaskedGivesZeros) {
+  const std::vector<float> l = {1.0f, 2.0f, 3.0f}, m = {0.0f, 0.0f, 0.0f};
+  std::vector<float> p(3, 9.0f);
+  kernels::masked_softmax(l.data(), m.data(), 1.0f, 3, p.data());
+  for (float v : p) EXPECT_EQ(v, 0.0f);
+}
+
+TEST(NnKernels, ActLayerNormMatchesScalarAndFormula) {
+  for (int n = 0; n <= max_n(); ++n) {
+    for (Activation act : {Activation::kNone, Activation::kRelu}) {
+      const auto z = random_vector(n, 100 + n, -3.0f, 3.0f);
+      const auto pre = random_vector(n, 110 + n);
+      const auto gain = random_vector(n, 120 + n, 0.5f, 1.5f);
+      const auto bias = random_vector(n, 130 + n);
+      std::vector<float> a(n), as(n), y(n), ys(n), st(2), sts(2);
+      kernels::act_layer_norm(z.data(), pre.data(), act, gain.data(), bias.data(), n, a.data(), y.data(),
+                              st.data());
+      kernels::act_layer_norm_scalar(z.data(), pre.data(), act, gain.data(), bias.data(), n, as.data(),
+                                     ys.data(), sts.data());
+      EXPECT_TRUE(same_bits(a, as) && same_bits(y, ys) && same_bits(st, sts)) << "n = " << n;
+      double mean = 0.0, var = 0.0;
+      std::vector<double> ad(n);
+      for (int i = 0; i < n; ++i) {
+        ad[i] = static_cast<double>(z[i]) + pre[i];
+        if (act == Activation::kRelu) ad[i] = std::max(ad[i], 0.0);
+        mean += ad[i] / n;
+      }
+      for (int i = 0; i < n; ++i) var += (ad[i] - mean) * (ad[i] - mean) / n;
+      for (int i = 0; i < n; ++i) {
+        const double want = var > 0.0 ? (ad[i] - mean) / std::sqrt(var + 1e-12) * gain[i] + bias[i] : bias[i];
+        EXPECT_NEAR(y[i], want, 2e-5) << "n = " << n;
+      }
+      // Backward, vector vs scalar (accumulating into dgain/dbias).
+      const auto dy = random_vector(n, 140 + n);
+      std::vector<float> dg(n, 0.5f), dgs(n, 0.5f), db(n, 0.25f), dbs(n, 0.25f), dz(n), dzs(n);
+      kernels::act_layer_norm_backward(a.data(), st.data(), gain.data(), dy.data(), act, n, dg.data(),
+                                       db.data(), dz.data());
+      kernels::act_layer_norm_backward_scalar(a.data(), st.data(), gain.data(), dy.data(), act, n, dgs.data(),
+                                              dbs.data(), dzs.data());
+      EXPECT_TRUE(same_bits(dg, dgs) && same_bits(db, dbs) && same_bits(dz, dzs)) << "n = " << n;
+    }
+  }
+}
+
+TEST(NnKernels, LstmCellMatchesScalarAndFormula) {
+  for (int u = 0; u <= max_n(); ++u) {
+    const auto g = random_vector(4 * u, 150 + u, -3.0f, 3.0f);
+    const auto c_prev = random_vector(u, 160 + u, -2.0f, 2.0f);
+    std::vector<float> gates(4 * u), gs(4 * u), c(u), cs(u), tc(u), tcs(u), h(u), hs(u);
+    kernels::lstm_cell(g.data(), c_prev.data(), u, gates.data(), c.data(), tc.data(), h.data());
+    kernels::lstm_cell_scalar(g.data(), c_prev.data(), u, gs.data(), cs.data(), tcs.data(), hs.data());
+    EXPECT_TRUE(same_bits(gates, gs) && same_bits(c, cs) && same_bits(tc, tcs) && same_bits(h, hs))
+        << "u = " << u;
+    auto sig = [](double x) { return 1.0 / (1.0 + std::exp(-x)); };
+    for (int k = 0; k < u; ++k) {
+      const double cn = c_prev[k] * sig(g[2 * u + k] + 1.0) + sig(g[k]) * std::tanh(g[u + k]);
+      EXPECT_NEAR(c[k], cn, 1e-6);
+      EXPECT_NEAR(h[k], std::tanh(cn) * sig(g[3 * u + k]), 1e-6);
+    }
+    // In place (gates aliasing g) gives the same.
+    auto g2 = g;
+    kernels::lstm_cell(g2.data(), c_prev.data(), u, g2.data(), cs.data(), tcs.data(), hs.data());
+    EXPECT_TRUE(same_bits(g2, gates));
+    const auto dh = random_vector(u, 170 + u);
+    const auto dc = random_vector(u, 180 + u);
+    std::vector<float> dg(4 * u), dgs(4 * u), dcp(u), dcps(u);
+    kernels::lstm_cell_backward(gates.data(), c_prev.data(), tc.data(), dh.data(), dc.data(), u, dg.data(),
+                                dcp.data());
+    kernels::lstm_cell_backward_scalar(gates.data(), c_prev.data(), tc.data(), dh.data(), dc.data(), u,
+                                       dgs.data(), dcps.data());
+    EXPECT_TRUE(same_bits(dg, dgs) && same_bits(dcp, dcps)) << "u = " << u;
+  }
+}
+
+}  // namespace
+}  // namespace hns::nn
