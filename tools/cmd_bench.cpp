@@ -2,6 +2,7 @@
 //
 //   hns bench --scene quadrant|full|empty [--envs N] [--steps S] [--threads T] [--seed S]
 //             [--hiders H --seekers K --boxes B --ramps R] [--substeps N] [--json FILE] [--profile FILE]
+//   hns bench --nn paper|small [--threads T] [--json FILE]
 #include <chrono>
 #include <cstdio>
 #include <memory>
@@ -13,6 +14,7 @@
 
 #include "batch/batch_sim.hpp"
 #include "cli.hpp"
+#include "nn/nn_bench.hpp"
 #include "physics/presets.hpp"
 
 namespace hns::tools {
@@ -30,6 +32,7 @@ struct BenchOptions {
   std::optional<int> hiders, seekers, boxes, ramps, substeps;
   std::string json;
   std::string profile;
+  std::string nn;  // "paper" or "small": time the networks instead of the simulator
 };
 
 constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep profiled runs short
@@ -145,6 +148,41 @@ int run_bench(const BenchOptions& opt) {
   return 0;
 }
 
+// Throughput of the policy + value networks on synthetic full-scene observations (`--nn MODEL`).
+int run_nn_bench(const BenchOptions& opt) {
+  hns::nn::NnBenchOptions o;
+  o.model = opt.nn;
+  o.threads = opt.threads;
+  o.seed = opt.seed;
+  std::printf(
+      "hns bench --nn %s: %d thread%s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
+      opt.nn.c_str(), opt.threads, opt.threads == 1 ? "" : "s", o.infer_agents, o.train_sequences,
+      o.train_steps);
+  std::fflush(stdout);
+  const hns::nn::NnBenchResult r = hns::nn::run_nn_bench(o);
+  std::printf("  parameters              %12zu (policy + value)\n", r.params);
+  std::printf("  inference agent-steps/s %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM)\n", r.infer_agent_steps_per_s,
+              r.infer_gflops, 100 * r.infer_gflops / r.gemm_gflops);
+  std::printf("  training agent-steps/s  %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM)\n", r.train_agent_steps_per_s,
+              r.train_gflops, 100 * r.train_gflops / r.gemm_gflops);
+  std::printf("  Eigen GEMM reference                  %7.1f GFLOP/s\n", r.gemm_gflops);
+  if (!opt.json.empty()) {
+    const nlohmann::json j = {{"model", r.model},
+                              {"threads", r.threads},
+                              {"params", r.params},
+                              {"infer_agent_steps_per_s", r.infer_agent_steps_per_s},
+                              {"train_agent_steps_per_s", r.train_agent_steps_per_s},
+                              {"infer_gflops", r.infer_gflops},
+                              {"train_gflops", r.train_gflops},
+                              {"gemm_gflops", r.gemm_gflops},
+                              {"infer_seconds", r.infer_seconds},
+                              {"train_seconds", r.train_seconds}};
+    write_atomically(opt.json, j.dump(2) + "\n");
+    std::printf("  wrote %s\n", opt.json.c_str());
+  }
+  return 0;
+}
+
 }  // namespace
 
 void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
@@ -171,7 +209,9 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--json", opt->json, "Write the figures as JSON to this file");
   cmd->add_option("--profile", opt->profile,
                   "Write a per-phase Chrome trace (JSON) of a short run to this file");
-  commands.push_back({cmd, [opt] { return run_bench(*opt); }});
+  cmd->add_option("--nn", opt->nn, "Time the policy + value networks of this model instead of the simulator")
+      ->check(CLI::IsMember({"paper", "small"}));
+  commands.push_back({cmd, [opt] { return opt->nn.empty() ? run_bench(*opt) : run_nn_bench(*opt); }});
 }
 
 }  // namespace hns::tools

@@ -42,6 +42,21 @@ else
   failed=$((failed + 1))
   echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
 fi
+# The network benchmark writes its documented fields.
+has_fields() {
+  local file="$1"
+  shift
+  for f in "$@"; do grep -q "\"$f\"" "$file" || return 1; done
+}
+if "$hns" bench --nn small --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
+   has_fields "$tmp/nn.json" model threads params infer_agent_steps_per_s train_agent_steps_per_s \
+     infer_gflops train_gflops gemm_gflops; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: bench --nn run"; cat "$tmp/log"
+fi
+expect_fail 2 "nn" bench --nn huge
 # A profiled run writes a Chrome trace with one event per env, step and phase.
 if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
    grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 40 ]; then
