@@ -8,7 +8,7 @@ work="$2"
 rm -rf "$work"
 "$src/tools/perf-gate" --baseline-src "$src" --current-src "$src" \
   --current-cmake-args=-DHNS_INJECT_STEP_WORK=6000 --suite 'bench_physics:BM_WorldStepQuadrant$' \
-  --pairs 5 --min-time 0.2 --instructions off --work-dir "$work" --jobs "$(nproc)"
+  --pairs 7 --min-time 0.2 --instructions off --work-dir "$work" --jobs "$(nproc)"
 rc=$?
 if [ "$rc" -eq 1 ]; then
   echo "1 passed, 0 failed"

@@ -44,6 +44,11 @@ class GateStatistics(unittest.TestCase):
         self.assertEqual(row["verdict"], "warning")
         self.assertIn("noise", row["note"])
 
+    def test_one_disturbed_pair_in_five_does_not_hide_a_large_slowdown(self):
+        base = [36.5, 36.0, 37.0, 36.4, 36.8]
+        cur = [45.7, 46.0, 45.1, 35.0, 46.3]  # +25 %, one pair where the baseline run was disturbed
+        self.assertEqual(self.verdict(base, cur)["verdict"], "regression")
+
     def test_clear_speedup_is_reported_faster(self):
         base = [100.0, 100.5, 99.8]
         self.assertEqual(self.verdict(base, [b * 0.8 for b in base])["verdict"], "faster")
