@@ -20,6 +20,7 @@ struct Command {
 void add_bench_command(CLI::App& app, std::vector<Command>& commands);
 void add_play_command(CLI::App& app, std::vector<Command>& commands);
 void add_replay_command(CLI::App& app, std::vector<Command>& commands);
+void add_train_command(CLI::App& app, std::vector<Command>& commands);
 
 // Writes `text` to `path` atomically: a temporary file beside it, then rename. Throws on failure.
 void write_atomically(const std::string& path, const std::string& text);

@@ -189,7 +189,7 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand("bench", "Throughput of the simulator with random actions");
   cmd->add_option("--scene", opt->scene, "Scene preset")
-      ->check(CLI::IsMember({"quadrant", "full", "empty"}))
+      ->check(CLI::IsMember({"quadrant", "full", "empty", "lockbox"}))
       ->capture_default_str();
   cmd->add_option("--envs", opt->envs, "Number of envs")
       ->check(CLI::Range(1, 1 << 20))

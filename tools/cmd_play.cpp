@@ -89,7 +89,7 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* cmd =
       app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
   cmd->add_option("--scene", opt->scene, "Scene preset")
-      ->check(CLI::IsMember({"quadrant", "full", "empty"}))
+      ->check(CLI::IsMember({"quadrant", "full", "empty", "lockbox"}))
       ->capture_default_str();
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
   cmd->add_option("--checkpoint", opt->checkpoint, "Act with a trained policy (needs the trainer)")

@@ -106,12 +106,20 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
 BatchSim::~BatchSim() = default;
 
 void BatchSim::reset() {
+  reset(std::span<const int32_t>());
+}
+
+void BatchSim::reset(std::span<const int32_t> episodes) {
+  if (!episodes.empty() && int(episodes.size()) != config_.num_envs) {
+    throw std::invalid_argument("BatchSim::reset: " + std::to_string(episodes.size()) + " episode numbers for " +
+                                std::to_string(config_.num_envs) + " envs");
+  }
   arena_->execute([&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
         [&](const tbb::blocked_range<int>& r) {
           for (int e = r.begin(); e != r.end(); ++e) {
-            reset_env(e, 0);
+            reset_env(e, episodes.empty() ? 0 : uint64_t(episodes[e]));
             observe_env(e);
             state_.done[e] = 0;
             std::fill_n(state_.reward.data() + size_t(e) * layout_.max_agents, layout_.max_agents, 0.0f);
@@ -250,6 +258,9 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
               state_.box_pos_start.data() + size_t(env) * layout_.max_boxes * 3);
   std::copy_n(state_.ramp_pos.data() + size_t(env) * layout_.max_ramps * 3, layout_.max_ramps * 3,
               state_.ramp_pos_start.data() + size_t(env) * layout_.max_ramps * 3);
+  std::copy_n(state_.box_locked.data() + size_t(env) * layout_.max_boxes, layout_.max_boxes,
+              state_.task_locked.data() + size_t(env) * layout_.max_boxes);
+  if (config_.world.task == physics::WorldConfig::Task::kLockBox) lockbox_retarget(env);
 }
 
 void BatchSim::refresh_env(int env) {
@@ -482,6 +493,16 @@ void BatchSim::rewards_env(int env) {
   }
   const bool prep = t <= wc.prep_steps();
   float* reward = s.reward.data() + size_t(env) * L.max_agents;
+  if (wc.task == physics::WorldConfig::Task::kLockBox) {
+    lockbox_rewards_env(env, reward);
+    for (int a = 0; a < L.max_agents; ++a) {
+      if (a < n && outside(pos + 3 * a)) reward[a] = kOutOfBoundsReward;
+      if (a >= n) reward[a] = 0.0f;
+    }
+    s.episode_return[size_t(env) * 2] += reward[0];
+    s.done[env] = world.done() ? 1 : 0;
+    return;
+  }
   float hider_sum = 0, seeker_sum = 0;
   int hiders = 0;
   for (int a = 0; a < L.max_agents; ++a) {
@@ -503,6 +524,55 @@ void BatchSim::rewards_env(int env) {
   // Statistics at the end of the preparation phase (SPEC §7).
   if (t == wc.prep_steps()) measure_env(env, s.stat_prep.data() + size_t(env) * 4);
   s.done[env] = world.done() ? 1 : 0;
+}
+
+void BatchSim::lockbox_retarget(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const float* agent = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
+  int best = -1;
+  float best_d = 0.0f;
+  for (int b = 0; b < L.max_boxes; ++b) {
+    const size_t i = size_t(env) * L.max_boxes + b;
+    if (s.box_exists[i] == 0 || s.box_locked[i] != 0) continue;
+    const float d = std::hypot(s.box_pos[3 * i] - agent[0], s.box_pos[3 * i + 1] - agent[1]);
+    if (best < 0 || d < best_d) best = b, best_d = d;
+  }
+  s.task_target[env] = best;
+  s.task_dist[env] = best_d;
+}
+
+// SPEC §9.2, target 'all', for agent 0 (every agent of the env gets the same reward): +lock_reward per newly
+// locked box, -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance
+// to the target box, +scale x the old distance when the target gets locked, -scale x the new target's
+// distance when a box gets unlocked; +success_reward every step all boxes are locked.
+void BatchSim::lockbox_rewards_env(int env, float* reward) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const physics::WorldConfig& wc = config_.world;
+  const uint8_t* locked = s.box_locked.data() + size_t(env) * L.max_boxes;
+  uint8_t* before = s.task_locked.data() + size_t(env) * L.max_boxes;
+  int newly_locked = 0, newly_unlocked = 0;
+  for (int b = 0; b < L.max_boxes; ++b) {
+    newly_locked += locked[b] != 0 && before[b] == 0;
+    newly_unlocked += locked[b] == 0 && before[b] != 0;
+    before[b] = locked[b];
+  }
+  double r = wc.lock_reward * newly_locked - wc.unlock_penalty * newly_unlocked;
+  const int target = s.task_target[env];
+  const double old_dist = s.task_dist[env];
+  if (target >= 0 && locked[target] != 0) {
+    r += wc.shaped_reward_scale * old_dist;
+    lockbox_retarget(env);
+  } else if (newly_unlocked > 0) {
+    lockbox_retarget(env);
+    r -= wc.shaped_reward_scale * s.task_dist[env];
+  } else if (target >= 0) {
+    lockbox_retarget(env);
+    r += wc.shaped_reward_scale * (old_dist - s.task_dist[env]);
+  }
+  if (s.task_target[env] < 0) r += wc.success_reward;
+  std::fill_n(reward, L.max_agents, float(r));
 }
 
 void BatchSim::measure_env(int env, float out[4]) const {

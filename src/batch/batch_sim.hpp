@@ -109,6 +109,10 @@ struct Layout {
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
   X(float, stat_prep, 4, "at the end of prep: max box move, boxes locked, max ramp move, ramps locked")    \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
+  /* Box-locking task (WorldConfig::Task::kLockBox, SPEC §9.2). */                                        \
+  X(int32_t, task_target, 1, "box the agent is sent to, -1 when all are locked (envs)")                    \
+  X(float, task_dist, 1, "agent 0's 2-D distance to the target box at the last step, m (envs)")            \
+  X(uint8_t, task_locked, L.max_boxes, "box locked at the last step (envs x B)")                           \
   /* Observations per agent (SPEC §4.3-§4.6 with §14.1). */                                             \
   X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                  \
   X(float, obs_agents, L.max_agents* L.others* Layout::kAgentFeatures,                                     \
@@ -184,6 +188,8 @@ class BatchSim {
 
   // Starts episode 0 of every env.
   void reset();
+  // Starts episode episodes[e] of every env e (a trainer resuming from a checkpoint). Size: num_envs.
+  void reset(std::span<const int32_t> episodes);
   // Restarts env `env` on a given scene (tests, replays); the env's episode counter is kept.
   void load_scene(int env, const physics::Scene& scene);
   // One env step of every env, in parallel. actions: num_envs x max_agents (padding slots ignored).
@@ -221,6 +227,8 @@ class BatchSim {
   void build_shapes(int env);
   void perceive_env(int env);
   void rewards_env(int env);
+  void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 task 'all' for agent 0
+  void lockbox_retarget(int env);                    // nearest unlocked box and its distance
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // Max box move (m), boxes locked, max ramp move (m), ramps locked, from the mirror (SPEC §7).

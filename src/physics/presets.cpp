@@ -8,7 +8,8 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "quadrant") return WorldConfig::quadrant();
   if (name == "full") return WorldConfig::full();
   if (name == "empty") return WorldConfig::empty();
-  throw ConfigError("scene = '" + name + "' is invalid: must be one of quadrant, full, empty");
+  if (name == "lockbox") return WorldConfig::lockbox();
+  throw ConfigError("scene = '" + name + "' is invalid: must be one of quadrant, full, empty, lockbox");
 }
 
 void apply_overrides(WorldConfig& config, const CountOverrides& counts) {

@@ -8,7 +8,8 @@
 
 namespace hns::physics {
 
-// "quadrant" (SPEC §14.5 quadrant game), "full" (the paper's full game on random rooms), "empty".
+// "quadrant" (SPEC §14.5 quadrant game), "full" (the paper's full game on random rooms), "empty", "lockbox"
+// (one agent must reach and lock a cube: the box-locking task of SPEC §9.2).
 // Throws ConfigError naming the allowed names.
 WorldConfig world_preset(const std::string& name);
 

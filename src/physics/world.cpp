@@ -184,6 +184,21 @@ WorldConfig WorldConfig::empty() {
   return c;
 }
 
+WorldConfig WorldConfig::lockbox() {
+  WorldConfig c;
+  c.scene = SceneConfig::empty();
+  c.scene.hiders = {1, 1};
+  c.scene.seekers = {0, 0};
+  c.scene.boxes = {1, 1};
+  c.scene.elongated = {0, 0};
+  c.scene.ramps = {0, 0};
+  c.horizon = 60;
+  c.prep_fraction = 0.0;
+  c.lock_ramps = false;
+  c.task = Task::kLockBox;
+  return c;
+}
+
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
 }
@@ -211,6 +226,13 @@ void WorldConfig::validate() const {
   check(physics.cfm >= 0 && physics.cfm <= 1, "physics.cfm", physics.cfm, "must be in [0, 1]");
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
+  check(task == Task::kHideAndSeek || task == Task::kLockBox, "task", int(task),
+        "must be hide_and_seek (0) or lockbox (1)");
+  check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
+  check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty, "must be in [0, 1000]");
+  check(shaped_reward_scale >= 0 && shaped_reward_scale <= 1e3, "shaped_reward_scale", shaped_reward_scale,
+        "must be in [0, 1000]");
+  check(success_reward >= 0 && success_reward <= 1e3, "success_reward", success_reward, "must be in [0, 1000]");
   check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
   check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,

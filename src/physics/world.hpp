@@ -51,10 +51,20 @@ struct WorldConfig {
   // costs every agent -10.
   double restrict_rect[4] = {0.1, 0.1, 5.9, 5.9};
   bool penalize_objects_out = true;
+  // The reward the batch layer computes: the hide-and-seek game (SPEC §5) or the box-locking task of SPEC
+  // §9.2 (target 'all': the nearest unlocked box; no return), which the PPO learning test uses.
+  enum class Task : uint8_t { kHideAndSeek, kLockBox };
+  Task task = Task::kHideAndSeek;
+  double lock_reward = 5.0;          // kLockBox: per newly locked box
+  double unlock_penalty = 5.0;       // kLockBox: per newly unlocked box
+  double shaped_reward_scale = 0.5;  // kLockBox: per m the agent gets closer to its target box (2-D)
+  double success_reward = 1.0;       // kLockBox: every step all boxes are locked
 
   static WorldConfig quadrant();
   static WorldConfig full();
   static WorldConfig empty();
+  // One hider and one cube in the empty room, task kLockBox, horizon 60, no preparation phase.
+  static WorldConfig lockbox();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;

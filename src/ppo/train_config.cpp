@@ -1,0 +1,299 @@
+#include "ppo/train_config.hpp"
+
+#include <cerrno>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <sstream>
+#include <vector>
+
+#include "nn/entity_net.hpp"
+#include "physics/presets.hpp"
+#include "physics/scene.hpp"
+
+namespace hns::ppo {
+
+namespace {
+
+using physics::ConfigError;
+
+// Calls f(name, field, is_identity) for every field in declaration order. Identity fields change the results
+// of a run; the others (iterations, threads, checkpoint cadence) do not.
+template <class Config, class F>
+void visit_fields(Config& c, F&& f) {
+  f("scene", c.scene, true);
+  f("model", c.model, true);
+  f("horizon", c.horizon, true);
+  f("envs", c.envs, true);
+  f("episodes_per_iteration", c.episodes_per_iteration, true);
+  f("iterations", c.iterations, false);
+  f("seed", c.seed, true);
+  f("threads", c.threads, false);
+  f("epochs", c.epochs, true);
+  f("minibatches", c.minibatches, true);
+  f("bptt", c.bptt, true);
+  f("lr", c.lr, true);
+  f("clip", c.clip, true);
+  f("entropy_coef", c.entropy_coef, true);
+  f("value_coef", c.value_coef, true);
+  f("grad_clip", c.grad_clip, true);
+  f("weight_decay", c.weight_decay, true);
+  f("gamma", c.gamma, true);
+  f("lambda", c.lambda, true);
+  f("checkpoint_every", c.checkpoint_every, false);
+  f("inject_nan_at", c.inject_nan_at, true);
+}
+
+std::string field_error(std::string_view key, std::string_view value, std::string_view allowed) {
+  return "config: " + std::string(key) + " = '" + std::string(value) + "' is invalid: " + std::string(allowed);
+}
+
+void parse_into(std::string_view key, std::string_view text, std::string& out) {
+  (void)key;
+  out = std::string(text);
+}
+template <class Int>
+void parse_integer(std::string_view key, std::string_view text, Int& out) {
+  Int v{};
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
+  if (ec != std::errc() || end != text.data() + text.size()) {
+    throw ConfigError(field_error(key, text, "must be an integer"));
+  }
+  out = v;
+}
+void parse_into(std::string_view key, std::string_view text, int& out) { parse_integer(key, text, out); }
+void parse_into(std::string_view key, std::string_view text, uint64_t& out) { parse_integer(key, text, out); }
+void parse_into(std::string_view key, std::string_view text, double& out) {
+  const std::string s(text);
+  char* end = nullptr;
+  errno = 0;
+  const double v = std::strtod(s.c_str(), &end);
+  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE || !std::isfinite(v)) {
+    throw ConfigError(field_error(key, text, "must be a finite number"));
+  }
+  out = v;
+}
+
+std::string text_of(const std::string& v) { return v; }
+std::string text_of(int v) { return std::to_string(v); }
+std::string text_of(uint64_t v) { return std::to_string(v); }
+std::string text_of(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+std::string json_string(const std::string& s) {
+  std::string out = "\"";
+  for (char ch : s) {
+    if (ch == '"' || ch == '\\') out += '\\';
+    if (static_cast<unsigned char>(ch) < 0x20) {
+      char buf[8];
+      std::snprintf(buf, sizeof buf, "\\u%04x", ch);
+      out += buf;
+      continue;
+    }
+    out += ch;
+  }
+  return out + "\"";
+}
+
+// A minimal reader for one flat JSON object: {"key": "string" | number | true | false, ...}.
+class FlatJsonReader {
+ public:
+  FlatJsonReader(std::string_view text, const std::string& origin) : s_(text), origin_(origin) {}
+
+  std::vector<std::pair<std::string, std::string>> read() {
+    std::vector<std::pair<std::string, std::string>> out;
+    skip_space();
+    expect('{');
+    skip_space();
+    if (peek() == '}') {
+      ++i_;
+    } else {
+      for (;;) {
+        skip_space();
+        std::string key = read_string();
+        skip_space();
+        expect(':');
+        skip_space();
+        std::string value = peek() == '"' ? read_string() : read_bare();
+        out.emplace_back(std::move(key), std::move(value));
+        skip_space();
+        if (peek() == ',') {
+          ++i_;
+          continue;
+        }
+        expect('}');
+        break;
+      }
+    }
+    skip_space();
+    if (i_ != s_.size()) fail("unexpected text after the closing '}'");
+    return out;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& what) const {
+    int line = 1;
+    for (size_t k = 0; k < i_ && k < s_.size(); ++k) line += s_[k] == '\n';
+    throw ConfigError(origin_ + ":" + std::to_string(line) + ": " + what +
+                      " (expected a flat JSON object such as {\"epochs\": 4, \"scene\": \"quadrant\"})");
+  }
+  char peek() const { return i_ < s_.size() ? s_[i_] : '\0'; }
+  void skip_space() {
+    while (i_ < s_.size() && (s_[i_] == ' ' || s_[i_] == '\t' || s_[i_] == '\n' || s_[i_] == '\r')) ++i_;
+  }
+  void expect(char c) {
+    if (peek() != c) fail(std::string("expected '") + c + "'");
+    ++i_;
+  }
+  std::string read_string() {
+    expect('"');
+    std::string out;
+    while (i_ < s_.size() && s_[i_] != '"') {
+      if (s_[i_] == '\\') {
+        ++i_;
+        if (i_ >= s_.size()) break;
+        const char e = s_[i_];
+        if (e == 'n') out += '\n';
+        else if (e == 't') out += '\t';
+        else if (e == '"' || e == '\\' || e == '/') out += e;
+        else fail("unsupported escape in a string");
+      } else {
+        out += s_[i_];
+      }
+      ++i_;
+    }
+    expect('"');
+    return out;
+  }
+  std::string read_bare() {
+    const size_t start = i_;
+    while (i_ < s_.size() && s_[i_] != ',' && s_[i_] != '}' && s_[i_] != ' ' && s_[i_] != '\n' &&
+           s_[i_] != '\r' && s_[i_] != '\t') {
+      ++i_;
+    }
+    if (i_ == start) fail("expected a value");
+    const std::string v(s_.substr(start, i_ - start));
+    if (v == "{" || v == "[" || v.front() == '{' || v.front() == '[') fail("nested objects and arrays are not allowed");
+    return v;
+  }
+
+  std::string_view s_;
+  std::string origin_;
+  size_t i_ = 0;
+};
+
+}  // namespace
+
+void TrainConfig::set(std::string_view key, std::string_view value) {
+  bool found = false;
+  visit_fields(*this, [&](const char* name, auto& field, bool) {
+    if (key != name) return;
+    found = true;
+    std::string text(value);
+    if constexpr (!std::is_same_v<std::decay_t<decltype(field)>, std::string>) {
+      if (text == "true") text = "1";
+      if (text == "false") text = "0";
+    }
+    parse_into(key, text, field);
+  });
+  if (!found) {
+    std::string names;
+    visit_fields(*this, [&](const char* name, auto&, bool) { names += (names.empty() ? "" : ", ") + std::string(name); });
+    throw ConfigError("config: unknown key '" + std::string(key) + "' (known keys: " + names + ")");
+  }
+}
+
+std::string TrainConfig::to_json() const {
+  std::string out = "{\n";
+  bool first = true;
+  visit_fields(*this, [&](const char* name, const auto& field, bool) {
+    out += first ? "  " : ",\n  ";
+    first = false;
+    out += json_string(name) + ": ";
+    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, std::string>) {
+      out += json_string(field);
+    } else {
+      out += text_of(field);
+    }
+  });
+  return out + "\n}\n";
+}
+
+void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
+  for (const auto& [key, value] : FlatJsonReader(text, origin).read()) {
+    try {
+      set(key, value);
+    } catch (const ConfigError& e) {
+      throw ConfigError(origin + ": " + e.what());
+    }
+  }
+}
+
+std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
+  std::vector<std::string> mine, theirs;
+  visit_fields(*this, [&](const char*, const auto& field, bool identity) {
+    if (identity) mine.push_back(text_of(field));
+  });
+  visit_fields(other, [&](const char*, const auto& field, bool identity) {
+    if (identity) theirs.push_back(text_of(field));
+  });
+  size_t k = 0;
+  std::string result;
+  visit_fields(*this, [&](const char* name, const auto&, bool identity) {
+    if (!identity) return;
+    if (result.empty() && mine[k] != theirs[k]) {
+      result = std::string(name) + ": checkpoint has " + mine[k] + ", this run has " + theirs[k];
+    }
+    ++k;
+  });
+  return result;
+}
+
+physics::WorldConfig TrainConfig::world() const {
+  physics::WorldConfig w = physics::world_preset(scene);
+  if (horizon > 0) w.horizon = horizon;
+  return w;
+}
+
+void TrainConfig::validate() const {
+  auto check = [](bool ok, const char* key, const auto& value, const char* allowed) {
+    if (!ok) throw ConfigError(field_error(key, text_of(value), allowed));
+  };
+  const physics::WorldConfig w = world();  // throws for an unknown scene
+  try {
+    (void)nn::net_preset(model);
+  } catch (const std::invalid_argument&) {
+    check(false, "model", model, "must be one of small, paper");
+  }
+  w.validate();
+  check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");
+  check(envs >= 1 && envs <= 65536, "envs", envs, "must be in [1, 65536]");
+  check(episodes_per_iteration >= 1 && episodes_per_iteration <= 1000, "episodes_per_iteration",
+        episodes_per_iteration, "must be in [1, 1000]");
+  check(iterations >= 1 && iterations <= 100000000, "iterations", iterations, "must be in [1, 100000000]");
+  check(threads >= 0 && threads <= 4096, "threads", threads, "must be in [0, 4096] (0 = all)");
+  check(epochs >= 1 && epochs <= 100, "epochs", epochs, "must be in [1, 100]");
+  check(bptt >= 1 && bptt <= 1000, "bptt", bptt, "must be in [1, 1000]");
+  check(rollout_steps() % bptt == 0, "bptt", bptt,
+        "must divide the rollout length (horizon x episodes_per_iteration)");
+  const int64_t chunks = int64_t(envs) * (rollout_steps() / bptt);
+  check(minibatches >= 1 && minibatches <= chunks, "minibatches", minibatches,
+        "must be in [1, envs x rollout steps / bptt]");
+  check(lr > 0 && lr <= 1, "lr", lr, "must be in (0, 1]");
+  check(clip > 0 && clip < 1, "clip", clip, "must be in (0, 1)");
+  check(entropy_coef >= 0 && entropy_coef <= 10, "entropy_coef", entropy_coef, "must be in [0, 10]");
+  check(value_coef >= 0 && value_coef <= 100, "value_coef", value_coef, "must be in [0, 100]");
+  check(grad_clip >= 0 && grad_clip <= 1e6, "grad_clip", grad_clip, "must be in [0, 1e6] (0 = off)");
+  check(weight_decay >= 0 && weight_decay <= 1, "weight_decay", weight_decay, "must be in [0, 1]");
+  check(gamma > 0 && gamma <= 1, "gamma", gamma, "must be in (0, 1]");
+  check(lambda >= 0 && lambda <= 1, "lambda", lambda, "must be in [0, 1]");
+  check(checkpoint_every >= 1 && checkpoint_every <= 100000000, "checkpoint_every", checkpoint_every,
+        "must be in [1, 100000000]");
+  check(inject_nan_at >= 0, "inject_nan_at", inject_nan_at, "must be >= 0 (0 = never)");
+}
+
+}  // namespace hns::ppo

@@ -1,0 +1,62 @@
+// Everything a training run is made of, validated, and its flat-JSON form (the `--config` file, the
+// resolved `config.json` of a run folder and the identity stored in checkpoints).
+//
+// Rollouts are aligned to episodes: every iteration runs `episodes_per_iteration` whole episodes in every env,
+// so an iteration starts with fresh episodes and zero LSTM states (what makes resume bit-identical without
+// saving the physics state). GAE windows are therefore whole rollouts (SPEC §14 note in docs/training.md).
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <string_view>
+
+#include "physics/world.hpp"
+
+namespace hns::ppo {
+
+struct TrainConfig {
+  // Game and model.
+  std::string scene = "quadrant";  // quadrant | full | empty | lockbox (physics::world_preset)
+  std::string model = "small";     // small | paper (nn::net_preset)
+  int horizon = 0;                 // env steps per episode; 0 = the scene preset's
+  // Rollouts.
+  int envs = 32;                   // game instances stepped together
+  int episodes_per_iteration = 1;  // whole episodes per env per iteration
+  int iterations = 100;            // total iterations of the run (a resumed run continues to this count)
+  uint64_t seed = 1;
+  int threads = 0;  // TBB threads for simulation and networks; 0 = every hardware thread
+  // PPO (paper appendix B).
+  int epochs = 4;        // passes over the rollout buffer per iteration
+  int minibatches = 4;   // minibatches per epoch (each a set of BPTT chunks)
+  int bptt = 10;         // BPTT truncation: steps per chunk
+  double lr = 3e-4;      // Adam learning rate
+  double clip = 0.2;     // PPO ratio clip ε
+  double entropy_coef = 0.01;
+  double value_coef = 1.0;  // weight of 0.5·mean(((V - G)/std)²)
+  double grad_clip = 5.0;   // global gradient-norm clip (0 = off)
+  double weight_decay = 0.0;
+  double gamma = 0.998;
+  double lambda = 0.95;
+  // Run bookkeeping.
+  int checkpoint_every = 10;  // iterations between checkpoints (and one at the end)
+  int inject_nan_at = 0;      // testing: poison the loss at this iteration (0 = never)
+
+  // Throws physics::ConfigError naming the field, its value and what is allowed.
+  void validate() const;
+  // The world this config trains on (preset with the horizon override).
+  physics::WorldConfig world() const;
+  int rollout_steps() const { return world().horizon * episodes_per_iteration; }
+
+  // Sets one field from its text form ("epochs", "4"); throws ConfigError for an unknown key or bad value.
+  void set(std::string_view key, std::string_view value);
+  // Flat JSON object with every field, one per line, in declaration order.
+  std::string to_json() const;
+  // Reads a flat JSON object (string, number and boolean values); keys not given keep their current values.
+  // `origin` names the source in error messages.
+  void merge_json(std::string_view text, const std::string& origin);
+  // Fields that change results when they differ between a checkpoint and the run resuming it.
+  // Returns "" when equal, else "FIELD: checkpoint has A, this run has B".
+  std::string identity_mismatch(const TrainConfig& other) const;
+};
+
+}  // namespace hns::ppo

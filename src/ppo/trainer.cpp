@@ -1,0 +1,554 @@
+#include "ppo/trainer.hpp"
+
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/enumerable_thread_specific.h>
+#include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/task_arena.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+
+#include "physics/rng.hpp"
+#include "ppo/ppo_math.hpp"
+
+namespace hns::ppo {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+
+// Streams of the counter-derived random numbers (physics::Rng(seed ^ stream, iteration, step)).
+constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
+constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
+
+// Loss statistics summed over chunks: policy loss, value loss, entropy (each x count), approx KL x count,
+// clipped entries, count.
+enum Stat { kPolicyLoss, kValueLoss, kEntropy, kKl, kClipped, kCount, kNumStats };
+
+float uniform_float(physics::Rng& rng) { return float(rng.next_u64() >> 40) * 0x1.0p-24f; }
+
+}  // namespace
+
+void ScalarNormalizer::update(double batch_mean, double batch_sq) {
+  biased_mean = beta * biased_mean + (1 - beta) * batch_mean;
+  biased_sq = beta * biased_sq + (1 - beta) * batch_sq;
+  debias = beta * debias + (1 - beta);
+}
+
+double ScalarNormalizer::std() const {
+  if (debias <= 0) return 1.0;
+  const double m = mean();
+  return std::sqrt(std::max(biased_sq / debias - m * m, nn::kObsNormVarFloor));
+}
+
+// One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
+struct ObsArrays {
+  nn::FloatBuffer self, lidar, agents, boxes, ramps;
+  nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;
+  nn::FloatBuffer reset;
+
+  void allocate(const nn::ObsShape& s, size_t rows) {
+    const size_t na = s.num_other_agents();
+    self.resize(rows * s.self_features);
+    lidar.resize(rows * s.lidar_rays);
+    agents.resize(rows * na * s.agent_features);
+    boxes.resize(rows * s.max_boxes * s.box_features);
+    ramps.resize(rows * s.max_ramps * s.ramp_features);
+    agents_seen.resize(rows * na);
+    boxes_seen.resize(rows * s.max_boxes);
+    ramps_seen.resize(rows * s.max_ramps);
+    agents_present.resize(rows * na);
+    boxes_present.resize(rows * s.max_boxes);
+    ramps_present.resize(rows * s.max_ramps);
+    reset.resize(rows);
+  }
+  nn::ObsBatch batch() const {
+    nn::ObsBatch b;
+    b.self = self.data();
+    b.lidar = lidar.data();
+    b.agents = agents.data();
+    b.boxes = boxes.data();
+    b.ramps = ramps.data();
+    b.agents_seen = agents_seen.data();
+    b.boxes_seen = boxes_seen.data();
+    b.ramps_seen = ramps_seen.data();
+    b.agents_present = agents_present.data();
+    b.boxes_present = boxes_present.data();
+    b.ramps_present = ramps_present.data();
+    b.reset = reset.data();
+    return b;
+  }
+  // Calls f(buffer, floats per row) for every array.
+  template <class F>
+  void for_each(const nn::ObsShape& s, F&& f) {
+    const int na = s.num_other_agents();
+    f(self, s.self_features);
+    f(lidar, s.lidar_rays);
+    f(agents, na * s.agent_features);
+    f(boxes, s.max_boxes * s.box_features);
+    f(ramps, s.max_ramps * s.ramp_features);
+    f(agents_seen, na);
+    f(boxes_seen, s.max_boxes);
+    f(ramps_seen, s.max_ramps);
+    f(agents_present, na);
+    f(boxes_present, s.max_boxes);
+    f(ramps_present, s.max_ramps);
+    f(reset, 1);
+  }
+};
+
+struct Trainer::Buffers {
+  // Rollout, step-major: row = t * G + g.
+  ObsArrays obs;
+  std::vector<int32_t> actions;  // [T*G, heads]
+  nn::FloatBuffer logp;          // [T*G] log-probability of the sampled actions
+  nn::FloatBuffer value_norm;    // [T*G] value head (normalised)
+  nn::FloatBuffer value;         // [T*G] de-normalised value
+  nn::FloatBuffer reward;        // [T*G]
+  nn::FloatBuffer adv;           // [T*G] advantages, z-scored
+  nn::FloatBuffer ret;           // [T*G] TD(λ) targets
+  nn::FloatBuffer ret_norm;      // [T*G] normalised targets
+  std::vector<uint8_t> mask;     // [T*G] 1 for a real agent
+  std::vector<uint8_t> last;     // [T*G] 1 if the step ended the agent's episode or the window
+  nn::FloatBuffer state_p, state_v;  // [T/bptt, G, state width] LSTM states entering each chunk
+  // Live rollout state.
+  nn::FloatBuffer cur_p, cur_v;  // [G, state width]
+  nn::FloatBuffer uniforms;      // [G, heads]
+  std::vector<batch::AgentAction> env_actions;  // [G]
+  // Minibatch scratch, sequence-major: row = k * bptt + j.
+  ObsArrays mb_obs;
+  std::vector<int32_t> mb_actions;
+  nn::FloatBuffer mb_logp, mb_adv, mb_ret;
+  std::vector<uint8_t> mb_mask;
+  nn::FloatBuffer mb_state_p, mb_state_v;
+  std::vector<int32_t> chunks;  // valid chunk ids c * G + g
+  // Loss scratch per thread.
+  struct LossScratch {
+    std::vector<float> new_logp, entropy, grad_logp, d_entropy, grad_value;
+  };
+  tbb::enumerable_thread_specific<LossScratch> loss_scratch;
+};
+
+std::string IterationMetrics::to_json() const {
+  char buf[2048];
+  std::snprintf(
+      buf, sizeof buf,
+      "{\"iteration\": %lld, \"agent_steps\": %lld, \"env_steps\": %lld, \"seconds\": %.4f, "
+      "\"steps_per_s\": %.1f, \"episodes\": %d, \"hider_reward\": %.6g, \"seeker_reward\": %.6g, "
+      "\"max_box_move_prep\": %.6g, \"num_box_lock_prep\": %.6g, \"max_ramp_move_prep\": %.6g, "
+      "\"num_ramp_lock_prep\": %.6g, \"max_box_move\": %.6g, \"num_box_lock\": %.6g, \"max_ramp_move\": %.6g, "
+      "\"num_ramp_lock\": %.6g, \"policy_loss\": %.6g, \"value_loss\": %.6g, \"entropy\": %.6g, "
+      "\"approx_kl\": %.6g, \"clip_frac\": %.6g, \"explained_variance\": %.6g, \"grad_norm\": %.6g, "
+      "\"value_mean\": %.6g, \"value_std\": %.6g, \"time_simulate\": %.4f, \"time_observe\": %.4f, "
+      "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_other\": %.4f, "
+      "\"unstable_resets\": %lld}",
+      static_cast<long long>(iteration), static_cast<long long>(agent_steps), static_cast<long long>(env_steps),
+      seconds, steps_per_s, episodes, hider_reward, seeker_reward, max_box_move_prep, num_box_lock_prep,
+      max_ramp_move_prep, num_ramp_lock_prep, max_box_move, num_box_lock, max_ramp_move, num_ramp_lock,
+      policy_loss, value_loss, entropy, approx_kl, clip_frac, explained_variance, grad_norm, value_mean,
+      value_std, t_simulate, t_observe, t_infer, t_learn, t_targets, t_other, static_cast<long long>(unstable_resets));
+  return buf;
+}
+
+Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_unique<Buffers>()) {
+  cfg_.validate();
+  batch::BatchConfig bc;
+  bc.world = cfg_.world();
+  bc.num_envs = cfg_.envs;
+  bc.threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
+  bc.seed = cfg_.seed;
+  sim_ = std::make_unique<batch::BatchSim>(bc);
+  const batch::Layout& L = sim_->layout();
+
+  nn::NetConfig nc = nn::net_preset(cfg_.model);
+  nc.obs.self_features = batch::Layout::kSelfFeatures;
+  nc.obs.max_agents = L.max_agents;
+  nc.obs.agent_features = batch::Layout::kAgentFeatures;
+  nc.obs.max_boxes = L.max_boxes;
+  nc.obs.box_features = batch::Layout::kBoxFeatures;
+  nc.obs.max_ramps = L.max_ramps;
+  nc.obs.ramp_features = batch::Layout::kRampFeatures;
+  nc.obs.lidar_rays = batch::Layout::kLidar;
+  net_ = std::make_unique<nn::ActorCritic>(nc);
+  net_->params().init(cfg_.seed);
+  nn::AdamConfig ac;
+  ac.lr = float(cfg_.lr);
+  ac.weight_decay = float(cfg_.weight_decay);
+  ac.max_grad_norm = float(cfg_.grad_clip);
+  adam_ = std::make_unique<nn::Adam>(net_->params().layout(), ac);
+  obs_norm_ = std::make_unique<nn::ObsNormalizer>(nc.obs);
+
+  rollout_steps_ = cfg_.rollout_steps();
+  rows_ = cfg_.envs * L.max_agents;
+  const size_t T = size_t(rollout_steps_), G = size_t(rows_), TG = T * G;
+  const int heads = net_->heads().num_heads();
+  const int sw = net_->state_width();
+  Buffers& b = *buf_;
+  b.obs.allocate(nc.obs, TG);
+  b.actions.assign(TG * heads, 0);
+  for (nn::FloatBuffer* f : {&b.logp, &b.value_norm, &b.value, &b.reward, &b.adv, &b.ret, &b.ret_norm})
+    f->resize(TG);
+  b.mask.assign(TG, 0);
+  b.last.assign(TG, 0);
+  b.state_p.resize(T / cfg_.bptt * G * sw);
+  b.state_v.resize(T / cfg_.bptt * G * sw);
+  b.cur_p.resize(G * sw);
+  b.cur_v.resize(G * sw);
+  b.uniforms.resize(G * heads);
+  b.env_actions.resize(G);
+  next_episode_.assign(cfg_.envs, 0);
+}
+
+Trainer::~Trainer() = default;
+
+void Trainer::restart_envs() {
+  sim_->reset(next_episode_);
+  need_restart_ = false;
+}
+
+IterationMetrics Trainer::iterate() {
+  const Clock::time_point t0 = Clock::now();
+  IterationMetrics m;
+  if (need_restart_) restart_envs();
+  const int threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
+  tbb::task_arena arena(threads);
+  arena.execute([&] {
+    rollout(m);
+    const Clock::time_point t_learn = Clock::now();
+    compute_targets(m);
+    m.t_targets += seconds_since(t_learn);
+    update(m);
+    m.t_learn = seconds_since(t_learn);
+    // The observation statistics move after the update, so that a rollout and the update of its data see
+    // the same normalisation.
+    const Clock::time_point t_obs = Clock::now();
+    const ObsArrays& o = buf_->obs;
+    obs_norm_->update(o.self.data(), o.lidar.data(), o.agents.data(), o.boxes.data(), o.ramps.data(),
+                      rollout_steps_ * rows_);
+    m.t_observe += seconds_since(t_obs);
+  });
+  ++iteration_;
+  m.iteration = iteration_;
+  m.agent_steps = agent_steps_;
+  m.env_steps = env_steps_;
+  m.value_mean = value_norm_.mean();
+  m.value_std = value_norm_.std();
+  m.unstable_resets = sim_->unstable_resets();
+  m.seconds = seconds_since(t0);
+  m.t_other = std::max(0.0, m.seconds - m.t_simulate - m.t_observe - m.t_infer - m.t_learn);
+  int64_t real_rows = 0;
+  for (uint8_t v : buf_->mask) real_rows += v;
+  m.steps_per_s = m.seconds > 0 ? double(real_rows) / m.seconds : 0.0;
+  return m;
+}
+
+void Trainer::rollout(IterationMetrics& m) {
+  Buffers& b = *buf_;
+  const batch::Layout& L = sim_->layout();
+  const nn::ObsShape& shape = net_->config().obs;
+  const int T = rollout_steps_, G = rows_, A = L.max_agents, E = cfg_.envs;
+  const int heads = net_->heads().num_heads();
+  const int sw = net_->state_width();
+  const nn::ObsNormView norm = obs_norm_->view();
+  const double vmean = value_norm_.mean(), vstd = value_norm_.std();
+  b.cur_p.fill_zero();
+  b.cur_v.fill_zero();
+  double sum_hider = 0, sum_seeker = 0;
+  double stat_sums[8] = {};
+  int episodes = 0;
+
+  for (int t = 0; t < T; ++t) {
+    const size_t row0 = size_t(t) * G;
+    // Observe: copy this step's observations and masks into the buffer.
+    Clock::time_point tp = Clock::now();
+    const batch::BatchState& s = sim_->state();
+    ObsArrays& o = b.obs;
+    const int na = shape.num_other_agents();
+    auto copy = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<float>& src, size_t per_row) {
+      std::memcpy(dst.data() + row0 * per_row, src.data(), sizeof(float) * G * per_row);
+    };
+    auto widen = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<uint8_t>& src, size_t per_row) {
+      float* d = dst.data() + row0 * per_row;
+      const uint8_t* p = src.data();
+      for (size_t i = 0; i < G * per_row; ++i) d[i] = float(p[i]);
+    };
+    copy(o.self, s.obs_self, shape.self_features);
+    copy(o.lidar, s.lidar, shape.lidar_rays);
+    copy(o.agents, s.obs_agents, size_t(na) * shape.agent_features);
+    copy(o.boxes, s.obs_boxes, size_t(shape.max_boxes) * shape.box_features);
+    copy(o.ramps, s.obs_ramps, size_t(shape.max_ramps) * shape.ramp_features);
+    widen(o.agents_seen, s.mask_agents, na);
+    widen(o.boxes_seen, s.mask_boxes, shape.max_boxes);
+    widen(o.ramps_seen, s.mask_ramps, shape.max_ramps);
+    widen(o.agents_present, s.value_mask_agents, na);
+    widen(o.boxes_present, s.value_mask_boxes, shape.max_boxes);
+    widen(o.ramps_present, s.value_mask_ramps, shape.max_ramps);
+    for (int g = 0; g < G; ++g) {
+      b.mask[row0 + g] = s.agent_exists[g];
+      const bool starts = t == 0 || b.last[row0 - G + g] != 0;
+      o.reset[row0 + g] = starts ? 1.0f : 0.0f;
+    }
+    if (t % cfg_.bptt == 0) {
+      const size_t c = size_t(t / cfg_.bptt);
+      std::memcpy(b.state_p.data() + c * G * sw, b.cur_p.data(), sizeof(float) * G * sw);
+      std::memcpy(b.state_v.data() + c * G * sw, b.cur_v.data(), sizeof(float) * G * sw);
+    }
+    physics::Rng rng(cfg_.seed ^ kActionStream, uint64_t(iteration_), uint64_t(t));
+    for (int i = 0; i < G * heads; ++i) b.uniforms[i] = uniform_float(rng);
+    m.t_observe += seconds_since(tp);
+
+    // Infer.
+    tp = Clock::now();
+    nn::ActorCritic::ActOutputs out;
+    out.actions = b.actions.data() + row0 * heads;
+    out.logp = b.logp.data() + row0;
+    out.value = b.value_norm.data() + row0;
+    net_->act(norm, o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(), b.uniforms.data(), out);
+    for (int g = 0; g < G; ++g) {
+      const int32_t* a = out.actions + size_t(g) * heads;
+      b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
+      b.value[row0 + g] = float(b.value_norm[row0 + g] * vstd + vmean);
+    }
+    m.t_infer += seconds_since(tp);
+
+    // Simulate.
+    tp = Clock::now();
+    sim_->step(b.env_actions);
+    m.t_simulate += seconds_since(tp);
+
+    tp = Clock::now();
+    for (int e = 0; e < E; ++e) {
+      for (int a = 0; a < A; ++a) {
+        const size_t r = row0 + size_t(e) * A + a;
+        b.reward[r] = s.reward[size_t(e) * A + a];
+        b.last[r] = (s.done[e] != 0 || t == T - 1) ? 1 : 0;
+      }
+    }
+    for (const batch::EpisodeStats& st : sim_->finished()) {
+      if (st.discarded) continue;
+      ++episodes;
+      sum_hider += st.hider_return;
+      sum_seeker += st.seeker_return;
+      const float v[8] = {st.max_box_move_prep, st.num_box_lock_prep, st.max_ramp_move_prep,
+                          st.num_ramp_lock_prep, st.max_box_move,      st.num_box_lock,
+                          st.max_ramp_move,      st.num_ramp_lock};
+      for (int k = 0; k < 8; ++k) stat_sums[k] += v[k];
+    }
+    m.t_observe += seconds_since(tp);
+  }
+
+  // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
+  // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh.
+  const batch::BatchState& s = sim_->state();
+  for (int e = 0; e < E; ++e) {
+    next_episode_[e] = s.episode[e] + (s.step_count[e] != 0 ? 1 : 0);
+    need_restart_ = need_restart_ || s.step_count[e] != 0;
+  }
+  int64_t real = 0;
+  for (uint8_t v : b.mask) real += v;
+  agent_steps_ += real;
+  env_steps_ += int64_t(T) * E;
+  m.episodes = episodes;
+  if (episodes > 0) {
+    m.hider_reward = sum_hider / episodes;
+    m.seeker_reward = sum_seeker / episodes;
+    double* dst[8] = {&m.max_box_move_prep, &m.num_box_lock_prep, &m.max_ramp_move_prep, &m.num_ramp_lock_prep,
+                      &m.max_box_move,      &m.num_box_lock,      &m.max_ramp_move,      &m.num_ramp_lock};
+    for (int k = 0; k < 8; ++k) *dst[k] = stat_sums[k] / episodes;
+  }
+}
+
+void Trainer::compute_targets(IterationMetrics& m) {
+  Buffers& b = *buf_;
+  const int T = rollout_steps_, G = rows_;
+  const GaeParams gp{cfg_.gamma, cfg_.lambda};
+  // Windowed GAE per agent row (independent rows, so any split gives the same bits).
+  tbb::parallel_for(tbb::blocked_range<int>(0, G, 16), [&](const tbb::blocked_range<int>& r) {
+    std::vector<float> rew(T), val(T + 1, 0.0f), adv(T), ret(T);
+    std::vector<uint8_t> last(T);
+    for (int g = r.begin(); g < r.end(); ++g) {
+      for (int t = 0; t < T; ++t) {
+        const size_t i = size_t(t) * G + g;
+        rew[t] = b.reward[i];
+        val[t] = b.value[i];
+        last[t] = b.last[i];
+      }
+      gae_window(rew, val, last, gp, adv, ret);
+      for (int t = 0; t < T; ++t) {
+        const size_t i = size_t(t) * G + g;
+        b.adv[i] = adv[t];
+        b.ret[i] = ret[t];
+      }
+    }
+  });
+  const size_t TG = size_t(T) * G;
+  m.explained_variance = explained_variance(b.value.span(), b.ret.span(), b.mask);
+  double sum = 0, sq = 0;
+  int64_t n = 0;
+  for (size_t i = 0; i < TG; ++i) {
+    if (b.mask[i] == 0) continue;
+    sum += b.ret[i];
+    sq += double(b.ret[i]) * b.ret[i];
+    ++n;
+  }
+  if (n > 0) value_norm_.update(sum / n, sq / n);
+  const double vm = value_norm_.mean(), inv = 1.0 / value_norm_.std();
+  for (size_t i = 0; i < TG; ++i) b.ret_norm[i] = float((b.ret[i] - vm) * inv);
+  zscore(b.adv.span(), b.mask);
+}
+
+void Trainer::update(IterationMetrics& m) {
+  Buffers& b = *buf_;
+  const nn::ObsShape& shape = net_->config().obs;
+  const int T = rollout_steps_, G = rows_, bptt = cfg_.bptt;
+  const int heads = net_->heads().num_heads();
+  const int sw = net_->state_width();
+  const int chunks_per_row = T / bptt;
+
+  // Chunks holding at least one real agent-step.
+  b.chunks.clear();
+  for (int c = 0; c < chunks_per_row; ++c) {
+    for (int g = 0; g < G; ++g) {
+      bool any = false;
+      for (int j = 0; j < bptt && !any; ++j) any = b.mask[size_t(c * bptt + j) * G + g] != 0;
+      if (any) b.chunks.push_back(c * G + g);
+    }
+  }
+  const int n_chunks = int(b.chunks.size());
+  if (n_chunks == 0) return;
+  const int minibatches = std::min(cfg_.minibatches, n_chunks);
+  const int max_seq = (n_chunks + minibatches - 1) / minibatches;
+  if (b.mb_mask.size() != size_t(max_seq) * bptt) {
+    const size_t rows = size_t(max_seq) * bptt;
+    b.mb_obs.allocate(shape, rows);
+    b.mb_actions.assign(rows * heads, 0);
+    b.mb_logp.resize(rows);
+    b.mb_adv.resize(rows);
+    b.mb_ret.resize(rows);
+    b.mb_mask.assign(rows, 0);
+    b.mb_state_p.resize(size_t(max_seq) * sw);
+    b.mb_state_v.resize(size_t(max_seq) * sw);
+  }
+
+  // Rollout array -> minibatch array, for every observation array (both visited in the same order).
+  struct ArrayPair {
+    const float* from;
+    float* to;
+    size_t per_row;
+  };
+  std::vector<ArrayPair> pairs;
+  b.obs.for_each(shape, [&](nn::FloatBuffer& f, int per_row) { pairs.push_back({f.data(), nullptr, size_t(per_row)}); });
+  size_t next = 0;
+  b.mb_obs.for_each(shape, [&](nn::FloatBuffer& f, int) { pairs[next++].to = f.data(); });
+  std::erase_if(pairs, [](const ArrayPair& a) { return a.per_row == 0; });
+
+  const float clip = float(cfg_.clip);
+  const double ent_coef = cfg_.entropy_coef, v_coef = cfg_.value_coef;
+  const nn::CategoricalHeads& hd = net_->heads();
+  const nn::ObsNormView norm = obs_norm_->view();
+  double sums[kNumStats] = {};
+  double grad_norm_sum = 0;
+  int updates = 0;
+
+  for (int epoch = 0; epoch < cfg_.epochs; ++epoch) {
+    physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_), uint64_t(epoch));
+    for (int i = n_chunks - 1; i > 0; --i) std::swap(b.chunks[i], b.chunks[rng.uniform_int(0, i + 1)]);
+    for (int mb = 0; mb < minibatches; ++mb) {
+      const int k0 = int(int64_t(n_chunks) * mb / minibatches);
+      const int k1 = int(int64_t(n_chunks) * (mb + 1) / minibatches);
+      const int S = k1 - k0;
+      // Gather the chunks, sequence-major.
+      const Clock::time_point t_gather = Clock::now();
+      tbb::parallel_for(tbb::blocked_range<int>(0, S, 8), [&](const tbb::blocked_range<int>& r) {
+        for (int k = r.begin(); k < r.end(); ++k) {
+          const int id = b.chunks[k0 + k];
+          const int c = id / G, g = id % G;
+          std::memcpy(b.mb_state_p.data() + size_t(k) * sw, b.state_p.data() + (size_t(c) * G + g) * sw,
+                      sizeof(float) * sw);
+          std::memcpy(b.mb_state_v.data() + size_t(k) * sw, b.state_v.data() + (size_t(c) * G + g) * sw,
+                      sizeof(float) * sw);
+          for (int j = 0; j < bptt; ++j) {
+            const size_t src = size_t(c * bptt + j) * G + g, dst = size_t(k) * bptt + j;
+            for (const ArrayPair& a : pairs)
+              std::memcpy(a.to + dst * a.per_row, a.from + src * a.per_row, sizeof(float) * a.per_row);
+            std::memcpy(b.mb_actions.data() + dst * heads, b.actions.data() + src * heads,
+                        sizeof(int32_t) * heads);
+            b.mb_logp[dst] = b.logp[src];
+            b.mb_adv[dst] = b.adv[src];
+            b.mb_ret[dst] = b.ret_norm[src];
+            b.mb_mask[dst] = b.mask[src];
+          }
+        }
+      });
+      int64_t total = 0;
+      for (int i = 0; i < S * bptt; ++i) total += b.mb_mask[i];
+      m.t_targets += seconds_since(t_gather);
+      if (total == 0) continue;
+      const double inv_total = 1.0 / double(total);
+      const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
+
+      nn::LossFn loss = [&](const nn::ChunkOutputs& out, const nn::ChunkGrads& g, std::span<double> st) {
+        Buffers::LossScratch& ls = b.loss_scratch.local();
+        const size_t n = size_t(out.rows);
+        for (auto* v : {&ls.new_logp, &ls.entropy, &ls.grad_logp, &ls.d_entropy, &ls.grad_value})
+          if (v->size() < n) v->resize(n);
+        const int r0 = out.first_row;
+        const int32_t* act = b.mb_actions.data() + size_t(r0) * heads;
+        hd.log_prob_entropy(out.logits, act, ls.new_logp.data(), ls.entropy.data());
+        const std::span<const uint8_t> mask(b.mb_mask.data() + r0, n);
+        const PolicyLossStats ps =
+            ppo_policy_loss({ls.new_logp.data(), n}, {b.mb_logp.data() + r0, n}, {b.mb_adv.data() + r0, n},
+                            mask, clip, {ls.grad_logp.data(), n});
+        const double vl = value_loss({out.value, n}, {b.mb_ret.data() + r0, n}, mask, {ls.grad_value.data(), n});
+        // ppo_math's means are over this chunk's entries; rescale to the minibatch mean.
+        const float pscale = float(double(ps.count) * inv_total);
+        const float vscale = float(v_coef * double(ps.count) * inv_total);
+        double ent = 0;
+        for (size_t i = 0; i < n; ++i) {
+          ls.grad_logp[i] *= pscale;
+          g.d_value[i] = ls.grad_value[i] * vscale;
+          ls.d_entropy[i] = mask[i] != 0 ? float(-ent_coef * inv_total) : 0.0f;
+          if (mask[i] != 0) ent += ls.entropy[i];
+        }
+        if (poison) g.d_value[0] = std::numeric_limits<float>::quiet_NaN();
+        hd.backward(out.logits, act, ls.grad_logp.data(), ls.d_entropy.data(), g.d_logits);
+        st[kPolicyLoss] += ps.loss * double(ps.count);
+        st[kValueLoss] += vl * double(ps.count);
+        st[kEntropy] += ent;
+        st[kKl] += ps.approx_kl * double(ps.count);
+        st[kClipped] += ps.clip_frac * double(ps.count);
+        st[kCount] += double(ps.count);
+      };
+      double st[kNumStats] = {};
+      float* grads = net_->params().grads();
+      net_->forward_backward(norm, b.mb_obs.batch(), S, bptt, b.mb_state_p.data(), b.mb_state_v.data(), loss,
+                             std::span<double>(st, kNumStats), grads);
+      const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);
+      bool finite = info.applied;
+      for (double v : st) finite = finite && std::isfinite(v);
+      if (!finite) {
+        throw NumericalError("iteration " + std::to_string(iteration_ + 1) + ", epoch " + std::to_string(epoch + 1) +
+                             ", minibatch " + std::to_string(mb + 1) + ": the loss or its gradient is not finite" +
+                             " (gradient norm " + std::to_string(info.grad_norm) + ")");
+      }
+      for (int k = 0; k < kNumStats; ++k) sums[k] += st[k];
+      grad_norm_sum += info.grad_norm;
+      ++updates;
+    }
+  }
+  if (sums[kCount] > 0) {
+    m.policy_loss = sums[kPolicyLoss] / sums[kCount];
+    m.value_loss = sums[kValueLoss] / sums[kCount];
+    m.entropy = sums[kEntropy] / sums[kCount];
+    m.approx_kl = sums[kKl] / sums[kCount];
+    m.clip_frac = sums[kClipped] / sums[kCount];
+  }
+  if (updates > 0) m.grad_norm = grad_norm_sum / updates;
+}
+
+}  // namespace hns::ppo

@@ -1,0 +1,125 @@
+// The synchronous PPO self-play loop (paper appendix B, SPEC §10.4): every agent of every env acts from one
+// shared policy; one iteration is
+//
+//   rollout   T = horizon x episodes_per_iteration steps of all envs: obs -> ActorCritic::act (sampled
+//             actions, log-probs, normalised values, LSTM states carried, zeroed at episode starts) ->
+//             BatchSim::step; the LSTM states entering every BPTT chunk are kept
+//   targets   windowed GAE and TD(λ) returns per agent row, value-target normaliser update, advantages
+//             z-scored over the buffer
+//   update    epochs x minibatches of shuffled BPTT chunks: clipped surrogate + value loss - entropy bonus,
+//             global-norm clip, Adam
+//   stats     observation normaliser update (after the update, so rollout and update see the same one)
+//
+// Buffer layout (structure of arrays, step-major): row = t * G + g for step t < T and agent row
+// g = env * max_agents + agent < G. Padding agent slots are stepped through the network but carry mask 0 and
+// take no part in any loss or statistic. Minibatches are gathered into sequence-major scratch
+// (row = chunk * bptt + j) for ActorCritic::forward_backward.
+//
+// Determinism: the simulator and the networks are bit-identical for any thread count; everything here is
+// serial or over fixed partitions, and the random numbers (action sampling, chunk shuffles) are
+// counter-derived from (seed, iteration, step), so nothing but the iteration needs saving to resume.
+#pragma once
+
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "nn/actor_critic.hpp"
+#include "nn/adam.hpp"
+#include "nn/obs_normalizer.hpp"
+#include "ppo/train_config.hpp"
+
+namespace hns::ppo {
+
+// Running mean and std of the value targets (SPEC §10.2): debiased EMA of the mean and of the square,
+// one update per iteration, std = sqrt(max(E[x²] - mean², 1e-2)).
+struct ScalarNormalizer {
+  double beta = 0.99999;
+  double biased_mean = 0, biased_sq = 0, debias = 0;
+  void update(double batch_mean, double batch_sq);
+  double mean() const { return debias > 0 ? biased_mean / debias : 0.0; }
+  double std() const;
+};
+
+// What one iteration measured.
+struct IterationMetrics {
+  int64_t iteration = 0;  // 1-based count of iterations done
+  int64_t agent_steps = 0;  // cumulative over the run, real agents only
+  int64_t env_steps = 0;    // cumulative
+  double seconds = 0;       // wall time of this iteration
+  double steps_per_s = 0;   // agent-steps per second of this iteration
+  // Episodes that ended during the iteration (means over them).
+  int episodes = 0;
+  double hider_reward = 0, seeker_reward = 0;  // episode returns: summed mean reward per team
+  double max_box_move_prep = 0, num_box_lock_prep = 0, max_ramp_move_prep = 0, num_ramp_lock_prep = 0;
+  double max_box_move = 0, num_box_lock = 0, max_ramp_move = 0, num_ramp_lock = 0;
+  // Update diagnostics (means over minibatches).
+  double policy_loss = 0, value_loss = 0, entropy = 0, approx_kl = 0, clip_frac = 0;
+  double explained_variance = 0, grad_norm = 0;
+  double value_mean = 0, value_std = 0;  // value-target normaliser after the update
+  // Wall seconds per phase: simulate (BatchSim::step), observe (copy of observations and masks into the
+  // buffer, normaliser update), infer (ActorCritic::act), learn (targets, gathers, forward/backward, Adam);
+  // t_targets is the part of learn outside the networks and Adam (GAE, normalisers, minibatch gathers).
+  double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_targets = 0, t_other = 0;
+  int64_t unstable_resets = 0;  // envs reset by numerical trouble since the start of this process
+
+  std::string to_json() const;  // one line, no newline
+};
+
+// Raised when a loss or gradient turns non-finite: the run must stop and keep its last good checkpoint.
+struct NumericalError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+class Trainer {
+ public:
+  // Validates the config (physics::ConfigError) and builds simulator, networks and optimiser; parameters are
+  // initialised from the seed.
+  explicit Trainer(const TrainConfig& config);
+  ~Trainer();
+  Trainer(const Trainer&) = delete;
+  Trainer& operator=(const Trainer&) = delete;
+
+  // One rollout + update. Throws NumericalError if a loss or gradient is not finite.
+  IterationMetrics iterate();
+
+  const TrainConfig& config() const { return cfg_; }
+  int64_t iteration() const { return iteration_; }
+  int64_t agent_steps() const { return agent_steps_; }
+  const nn::ActorCritic& net() const { return *net_; }
+  const batch::BatchSim& sim() const { return *sim_; }
+
+  // Checkpoint file (format in docs/training.md): magic, version, payload, FNV-1a 64 checksum. save() writes
+  // a temporary file beside `path` and renames it over `path`. load() refuses (std::runtime_error with the
+  // reason) a file that is truncated, corrupt, of another version or of a run with another identity.
+  void save(const std::string& path) const;
+  void load(const std::string& path);
+
+ private:
+  struct Buffers;
+  void rollout(IterationMetrics& m);
+  void compute_targets(IterationMetrics& m);
+  void update(IterationMetrics& m);
+  void restart_envs();
+
+  TrainConfig cfg_;
+  int rollout_steps_ = 0;  // T
+  int rows_ = 0;           // G = envs x max agents
+  std::unique_ptr<batch::BatchSim> sim_;
+  std::unique_ptr<nn::ActorCritic> net_;
+  std::unique_ptr<nn::Adam> adam_;
+  std::unique_ptr<nn::ObsNormalizer> obs_norm_;
+  ScalarNormalizer value_norm_;
+  std::unique_ptr<Buffers> buf_;
+  int64_t iteration_ = 0;
+  int64_t agent_steps_ = 0;
+  int64_t env_steps_ = 0;
+  std::vector<int32_t> next_episode_;  // per env: the episode the next iteration starts
+  bool need_restart_ = true;           // envs must be (re)started before the next rollout
+};
+
+}  // namespace hns::ppo

@@ -1,0 +1,41 @@
+// PPO learns a task built from the same world: in the `lockbox` scene one agent must reach a cube and lock
+// it (SPEC §9.2 rewards: +5 for the lock, 0.5 per m of approach, +1 every step the cube stays locked; 60-step
+// episodes). A random policy scores about 3; locking after about 10 steps and holding the lock scores about
+// 55. The run is deterministic for a given build (any thread count), about 300 k agent-steps.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cstdio>
+
+#include "ppo/trainer.hpp"
+
+namespace hns::ppo {
+namespace {
+
+TEST(PpoLearning, AgentLearnsToReachAndLockABox) {
+  TrainConfig c;
+  c.scene = "lockbox";
+  c.model = "small";
+  c.envs = 64;
+  c.iterations = 80;
+  c.threads = 0;  // every core; the result does not depend on it
+  c.seed = 1;
+  Trainer t(c);
+  double first = 0, last5 = 0;
+  for (int i = 1; i <= c.iterations; ++i) {
+    const IterationMetrics m = t.iterate();
+    if (i == 1) first = m.hider_reward;
+    if (i > c.iterations - 5) last5 += m.hider_reward / 5;
+    if (i % 10 == 0) {
+      std::printf("iteration %d: mean return %.2f, boxes locked at the end %.2f, entropy %.3f\n", i,
+                  m.hider_reward, m.num_box_lock, m.entropy);
+      std::fflush(stdout);
+    }
+  }
+  std::printf("first iteration %.2f, mean of the last 5 iterations %.2f\n", first, last5);
+  EXPECT_LT(first, 10.0);  // the random-policy level
+  EXPECT_GT(last5, 40.0);  // most episodes end with the box locked early and held
+}
+
+}  // namespace
+}  // namespace hns::ppo

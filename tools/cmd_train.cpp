@@ -1,0 +1,211 @@
+// `hns train`: synchronous PPO self-play (src/ppo/trainer.hpp), with a run folder holding config.json,
+// metrics.jsonl and checkpoint.bin (docs/training.md).
+//
+//   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
+//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--overwrite]
+#include <atomic>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "physics/scene.hpp"
+#include "ppo/trainer.hpp"
+
+namespace hns::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct TrainOptions {
+  std::string config_file;
+  std::optional<std::string> scene, model;
+  std::optional<int> iterations, threads, envs;
+  std::optional<uint64_t> seed;
+  std::vector<std::string> sets;
+  std::string out;
+  std::string resume;
+  bool overwrite = false;
+};
+
+std::atomic<bool> g_stop{false};
+
+extern "C" void on_interrupt(int) {
+  g_stop.store(true);
+  std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C ends the process at once
+  std::signal(SIGTERM, SIG_DFL);
+}
+
+std::string read_text(const std::string& path, const char* what) {
+  std::ifstream in(path);
+  if (!in) throw physics::ConfigError(std::string(what) + " " + path + " cannot be read");
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+std::string duration_text(double s) {
+  char buf[32];
+  const long t = long(s + 0.5);
+  if (t >= 3600) {
+    std::snprintf(buf, sizeof buf, "%ldh%02ldm", t / 3600, (t / 60) % 60);
+  } else {
+    std::snprintf(buf, sizeof buf, "%ldm%02lds", t / 60, t % 60);
+  }
+  return buf;
+}
+
+// Keeps the lines of metrics.jsonl up to `iteration` (a run stopped between writing a line and a checkpoint
+// repeats those iterations on resume).
+void truncate_metrics(const std::string& path, int64_t iteration) {
+  std::ifstream in(path);
+  if (!in) return;
+  std::string kept, line;
+  while (std::getline(in, line)) {
+    const auto pos = line.find("\"iteration\": ");
+    if (pos == std::string::npos) continue;
+    if (std::stoll(line.substr(pos + 13)) > iteration) break;
+    kept += line + "\n";
+  }
+  in.close();
+  write_atomically(path, kept);
+}
+
+int run_train(const TrainOptions& opt) {
+  ppo::TrainConfig cfg;
+  std::string dir = opt.out;
+  const bool resume = !opt.resume.empty();
+  if (resume) {
+    if (!opt.out.empty()) throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
+    if (!opt.config_file.empty()) throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
+    dir = opt.resume;
+    const std::string path = (fs::path(dir) / "config.json").string();
+    cfg.merge_json(read_text(path, "--resume: run config"), path);
+  } else if (!opt.config_file.empty()) {
+    cfg.merge_json(read_text(opt.config_file, "--config"), opt.config_file);
+  }
+  // Flags win over files.
+  for (const std::string& kv : opt.sets) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) throw physics::ConfigError("--set " + kv + ": expected KEY=VALUE");
+    cfg.set(kv.substr(0, eq), kv.substr(eq + 1));
+  }
+  if (opt.scene) cfg.scene = *opt.scene;
+  if (opt.model) cfg.model = *opt.model;
+  if (opt.iterations) cfg.iterations = *opt.iterations;
+  if (opt.threads) cfg.threads = *opt.threads;
+  if (opt.envs) cfg.envs = *opt.envs;
+  if (opt.seed) cfg.seed = *opt.seed;
+  cfg.validate();
+
+  if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
+  const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
+  const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
+  if (!resume) {
+    const bool used = fs::exists(ckpt) || fs::exists(metrics_path);
+    if (used && !opt.overwrite) {
+      throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
+                                 ", or start over with --overwrite");
+    }
+    fs::create_directories(dir);
+    fs::remove(ckpt);
+    fs::remove(metrics_path);
+  } else if (!fs::exists(ckpt)) {
+    throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
+  }
+
+  ppo::Trainer trainer(cfg);
+  if (resume) {
+    try {
+      trainer.load(ckpt);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
+      return 2;
+    }
+    truncate_metrics(metrics_path, trainer.iteration());
+  }
+  write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
+
+  const batch::Layout& L = trainer.sim().layout();
+  std::printf("hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
+              "%d epochs x %d minibatches, seed %llu\n",
+              cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
+              cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed));
+  if (resume) std::printf("  resuming %s at iteration %lld\n", dir.c_str(), static_cast<long long>(trainer.iteration()));
+  std::printf("  outputs in %s: metrics.jsonl, checkpoint.bin, config.json\n", dir.c_str());
+  std::fflush(stdout);
+
+  g_stop.store(false);
+  std::signal(SIGINT, on_interrupt);
+  std::signal(SIGTERM, on_interrupt);
+  std::ofstream metrics(metrics_path, std::ios::app);
+  if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
+  double mean_seconds = 0;
+  int timed = 0;
+  int status = 0;
+  while (trainer.iteration() < cfg.iterations) {
+    ppo::IterationMetrics m;
+    try {
+      m = trainer.iterate();
+    } catch (const ppo::NumericalError& e) {
+      std::fprintf(stderr,
+                   "\nhns train: stopped: %s\n  the last good checkpoint (if any) is kept: %s\n", e.what(),
+                   ckpt.c_str());
+      return 3;
+    }
+    metrics << m.to_json() << "\n";
+    metrics.flush();
+    if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
+    mean_seconds = (mean_seconds * timed + m.seconds) / (timed + 1);
+    ++timed;
+    const double eta = mean_seconds * double(cfg.iterations - m.iteration);
+    std::printf("iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f  "
+                "ETA %s\n",
+                static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
+                m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl,
+                duration_text(eta).c_str());
+    std::fflush(stdout);
+    const bool last = trainer.iteration() >= cfg.iterations;
+    if (last || g_stop.load() || trainer.iteration() % cfg.checkpoint_every == 0) trainer.save(ckpt);
+    if (g_stop.load() && !last) {
+      std::printf("hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
+                  "  hns train --resume %s\n",
+                  static_cast<long long>(trainer.iteration()), dir.c_str());
+      status = 130;
+      break;
+    }
+  }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  if (status == 0) {
+    std::printf("hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json)\n",
+                static_cast<long long>(trainer.iteration()), dir.c_str());
+  }
+  return status;
+}
+
+}  // namespace
+
+void add_train_command(CLI::App& app, std::vector<Command>& commands) {
+  auto opt = std::make_shared<TrainOptions>();
+  CLI::App* sub = app.add_subcommand("train", "Train hide-and-seek agents with PPO self-play");
+  sub->add_option("--config", opt->config_file, "Flat JSON config file (keys as in a run's config.json)");
+  sub->add_option("--scene", opt->scene, "quadrant | full | empty | lockbox");
+  sub->add_option("--model", opt->model, "small | paper");
+  sub->add_option("--iterations", opt->iterations, "Total iterations of the run");
+  sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling");
+  sub->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
+  sub->add_option("--envs", opt->envs, "Game instances stepped together");
+  sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");
+  sub->add_option("--out", opt->out, "Run folder (default runs/SCENE-MODEL-seedS)");
+  sub->add_option("--resume", opt->resume, "Continue the run in this folder from its checkpoint");
+  sub->add_flag("--overwrite", opt->overwrite, "Start over in a --out folder that already holds a run");
+  commands.push_back({sub, [opt] { return run_train(*opt); }});
+}
+
+}  // namespace hns::tools
