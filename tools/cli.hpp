@@ -21,6 +21,7 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands);
 void add_play_command(CLI::App& app, std::vector<Command>& commands);
 void add_replay_command(CLI::App& app, std::vector<Command>& commands);
 void add_train_command(CLI::App& app, std::vector<Command>& commands);
+void add_report_command(CLI::App& app, std::vector<Command>& commands);
 
 // Writes `text` to `path` atomically: a temporary file beside it, then rename. Throws on failure.
 void write_atomically(const std::string& path, const std::string& text);

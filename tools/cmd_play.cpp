@@ -1,6 +1,6 @@
 // `hns play`: records whole episodes into a trajectory file for `hns replay` (docs/trajectory-format.md).
 //
-//   hns play --scene quadrant|full|empty [--random | --checkpoint FILE] [--episodes E] [--seed S] [--envs N]
+//   hns play [--scene quadrant|full|empty|lockbox] [--random | --checkpoint FILE] [--episodes E] [--seed S] [--envs N]
 //            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE
 #include <algorithm>
 #include <cstdio>
@@ -12,6 +12,7 @@
 #include "batch/batch_sim.hpp"
 #include "cli.hpp"
 #include "physics/presets.hpp"
+#include "ppo/policy.hpp"
 #include "recorder.hpp"
 #include "trajectory.hpp"
 
@@ -21,7 +22,7 @@ namespace {
 namespace phys = hns::physics;
 
 struct PlayOptions {
-  std::string scene = "quadrant";
+  std::string scene;  // default quadrant, or the checkpoint's
   bool random = false;
   std::string checkpoint;
   int episodes = 1;
@@ -33,17 +34,27 @@ struct PlayOptions {
 };
 
 int run_play(const PlayOptions& opt) {
+  std::unique_ptr<ppo::Policy> policy;
+  std::string scene = opt.scene.empty() ? "quadrant" : opt.scene;
+  phys::WorldConfig world = phys::world_preset(scene);
   if (!opt.checkpoint.empty()) {
-    std::fprintf(stderr,
-                 "hns play: --checkpoint %s: checkpoints need the trainer (not built yet); record random "
-                 "actions with --random\n",
-                 opt.checkpoint.c_str());
-    return 2;
+    try {
+      policy = ppo::Policy::from_checkpoint(opt.checkpoint, opt.seed);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns play: --checkpoint: %s\n", e.what());
+      return 2;
+    }
+    if (!opt.scene.empty() && opt.scene != policy->config().scene) {
+      throw phys::ConfigError("--scene " + opt.scene + ": the checkpoint was trained on scene '" +
+                              policy->config().scene + "' (leave --scene out to use it)");
+    }
+    scene = policy->config().scene;
+    world = policy->config().world();
   }
   RecordConfig config;
-  config.scene = opt.scene;
+  config.scene = scene;
   config.episodes = opt.episodes;
-  config.game.world = phys::world_preset(opt.scene);
+  config.game.world = world;
   phys::apply_overrides(config.game.world,
                         phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
   // More envs than episodes would only play episodes nobody records.
@@ -52,17 +63,19 @@ int run_play(const PlayOptions& opt) {
   config.game.seed = opt.seed;
   config.game.validate();
 
-  std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, random actions, seed %llu\n",
-              opt.scene.c_str(), opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon,
+  std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, %s, seed %llu\n", scene.c_str(), opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon,
               config.game.num_envs, config.game.num_envs == 1 ? "" : "s",
+              policy ? "actions from the checkpoint's policy" : "random actions",
               static_cast<unsigned long long>(opt.seed));
   std::fflush(stdout);
   TrajectoryFile meta;
   meta.created_by = "hns play";
-  meta.policy = "random";
+  meta.policy = policy ? opt.checkpoint : "random";
   TrajectoryWriter writer(opt.out, meta, opt.episodes);
   RandomActions random(opt.seed);
-  const RecordSummary summary = record_episodes(config, random, [&](const TrajectoryEpisode& ep) {
+  ActionFn actions = random;
+  if (policy) actions = [&](const batch::BatchSim& sim, std::span<phys::AgentAction> a) { policy->act(sim, a); };
+  const RecordSummary summary = record_episodes(config, actions, [&](const TrajectoryEpisode& ep) {
     writer.add(ep);
     std::printf(
         "  env %d episode %d: %d hider%s v %d seeker%s, %d boxes (%d elongated), %d ramp%s, %d frames, "
@@ -88,11 +101,10 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<PlayOptions>();
   CLI::App* cmd =
       app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
-  cmd->add_option("--scene", opt->scene, "Scene preset")
-      ->check(CLI::IsMember({"quadrant", "full", "empty", "lockbox"}))
-      ->capture_default_str();
+  cmd->add_option("--scene", opt->scene, "Scene preset (default quadrant, or the checkpoint's)")
+      ->check(CLI::IsMember({"quadrant", "full", "empty", "lockbox"}));
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
-  cmd->add_option("--checkpoint", opt->checkpoint, "Act with a trained policy (needs the trainer)")
+  cmd->add_option("--checkpoint", opt->checkpoint, "Act with the policy of a training checkpoint (its scene)")
       ->excludes(random);
   cmd->add_option("--episodes", opt->episodes, "Whole episodes to record")
       ->check(CLI::Range(1, 100000))

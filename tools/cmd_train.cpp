@@ -15,7 +15,10 @@
 
 #include "cli.hpp"
 #include "physics/scene.hpp"
+#include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
+#include "recorder.hpp"
+#include "trajectory.hpp"
 
 namespace hns::tools {
 namespace {
@@ -76,6 +79,27 @@ void truncate_metrics(const std::string& path, int64_t iteration) {
   write_atomically(path, kept);
 }
 
+// Records `episodes` episodes with the trainer's current policy into `path` (atomically), for the report.
+void record_replay(const ppo::Trainer& trainer, const std::string& path, int episodes) {
+  const ppo::TrainConfig& cfg = trainer.config();
+  ppo::Policy policy(trainer, cfg.seed + uint64_t(trainer.iteration()));
+  RecordConfig rc;
+  rc.scene = cfg.scene;
+  rc.episodes = episodes;
+  rc.game.world = cfg.world();
+  rc.game.num_envs = episodes;
+  rc.game.threads = 1;
+  rc.game.seed = cfg.seed * 1000003ULL + uint64_t(trainer.iteration());
+  TrajectoryFile meta;
+  meta.created_by = "hns train";
+  meta.policy = "checkpoint.bin, iteration " + std::to_string(trainer.iteration());
+  TrajectoryWriter writer(path, meta, episodes);
+  record_episodes(
+      rc, [&](const batch::BatchSim& sim, std::span<physics::AgentAction> a) { policy.act(sim, a); },
+      [&](const TrajectoryEpisode& ep) { writer.add(ep); });
+  writer.finish();
+}
+
 int run_train(const TrainOptions& opt) {
   ppo::TrainConfig cfg;
   std::string dir = opt.out;
@@ -84,6 +108,9 @@ int run_train(const TrainOptions& opt) {
     if (!opt.out.empty()) throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
     if (!opt.config_file.empty()) throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
     dir = opt.resume;
+    if (!fs::exists(fs::path(dir) / "checkpoint.bin")) {
+      throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
+    }
     const std::string path = (fs::path(dir) / "config.json").string();
     cfg.merge_json(read_text(path, "--resume: run config"), path);
   } else if (!opt.config_file.empty()) {
@@ -106,6 +133,7 @@ int run_train(const TrainOptions& opt) {
   if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
+  const std::string replay_path = (fs::path(dir) / "replay.traj").string();
   if (!resume) {
     const bool used = fs::exists(ckpt) || fs::exists(metrics_path);
     if (used && !opt.overwrite) {
@@ -115,8 +143,7 @@ int run_train(const TrainOptions& opt) {
     fs::create_directories(dir);
     fs::remove(ckpt);
     fs::remove(metrics_path);
-  } else if (!fs::exists(ckpt)) {
-    throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
+    fs::remove(replay_path);
   }
 
   ppo::Trainer trainer(cfg);
@@ -137,7 +164,8 @@ int run_train(const TrainOptions& opt) {
               cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
               cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed));
   if (resume) std::printf("  resuming %s at iteration %lld\n", dir.c_str(), static_cast<long long>(trainer.iteration()));
-  std::printf("  outputs in %s: metrics.jsonl, checkpoint.bin, config.json\n", dir.c_str());
+  std::printf("  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
+              dir.c_str(), dir.c_str());
   std::fflush(stdout);
 
   g_stop.store(false);
@@ -171,7 +199,15 @@ int run_train(const TrainOptions& opt) {
                 duration_text(eta).c_str());
     std::fflush(stdout);
     const bool last = trainer.iteration() >= cfg.iterations;
-    if (last || g_stop.load() || trainer.iteration() % cfg.checkpoint_every == 0) trainer.save(ckpt);
+    if (last || g_stop.load() || trainer.iteration() % cfg.checkpoint_every == 0) {
+      trainer.save(ckpt);
+      // Episodes of the checkpoint's policy, for `hns report` (a discarded episode just leaves the old file).
+      try {
+        record_replay(trainer, replay_path, 2);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "hns train: warning: could not record %s: %s\n", replay_path.c_str(), e.what());
+      }
+    }
     if (g_stop.load() && !last) {
       std::printf("hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
                   "  hns train --resume %s\n",
@@ -183,8 +219,9 @@ int run_train(const TrainOptions& opt) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (status == 0) {
-    std::printf("hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json)\n",
-                static_cast<long long>(trainer.iteration()), dir.c_str());
+    std::printf("hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json, "
+                "replay.traj).\n  Report: hns report %s --html %s/report.html\n",
+                static_cast<long long>(trainer.iteration()), dir.c_str(), dir.c_str(), dir.c_str());
   }
   return status;
 }

@@ -16,6 +16,7 @@ int main(int argc, char** argv) {
   hns::tools::add_play_command(app, commands);
   hns::tools::add_replay_command(app, commands);
   hns::tools::add_train_command(app, commands);
+  hns::tools::add_report_command(app, commands);
 
   try {
     app.parse(argc, argv);

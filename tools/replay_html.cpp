@@ -12,6 +12,8 @@ namespace {
 constexpr std::string_view kTitleSlot = "@HNS_TITLE@";
 constexpr std::string_view kDataSlot = "@HNS_TRAJECTORY_BASE64@";
 
+}  // namespace
+
 std::string html_escape(const std::string& text) {
   std::string out;
   for (char c : text) {
@@ -38,7 +40,6 @@ std::string html_escape(const std::string& text) {
   return out;
 }
 
-// Replaces every occurrence of `slot`; returns how many there were.
 int replace_all(std::string& text, std::string_view slot, const std::string& value) {
   int count = 0;
   for (size_t pos = text.find(slot); pos != std::string::npos; pos = text.find(slot, pos + value.size())) {
@@ -47,8 +48,6 @@ int replace_all(std::string& text, std::string_view slot, const std::string& val
   }
   return count;
 }
-
-}  // namespace
 
 std::string base64_encode(std::string_view bytes) {
   static constexpr char kAlphabet[] = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";

@@ -7,6 +7,11 @@
 
 namespace hns::tools {
 
+// Text with &, <, >, " and ' escaped for HTML text and attribute values.
+std::string html_escape(const std::string& text);
+// Replaces every occurrence of `slot` in `text` with `value`; returns how many there were.
+int replace_all(std::string& text, std::string_view slot, const std::string& value);
+
 // Standard base64 (RFC 4648, with padding).
 std::string base64_encode(std::string_view bytes);
 

@@ -94,6 +94,39 @@ class Reader {
   std::string path_;
 };
 
+// The payload of a checkpoint file after checking its magic, version, length and checksum.
+std::string read_payload(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open checkpoint " + path);
+  std::ostringstream ss;
+  ss << in.rdbuf();
+  const std::string file = ss.str();
+  if (file.size() < kHeaderBytes + 8 || std::memcmp(file.data(), kMagic, sizeof kMagic) != 0) {
+    throw std::runtime_error("checkpoint " + path + " is not an hns checkpoint (bad magic or too short)");
+  }
+  uint32_t version = 0;
+  uint64_t length = 0;
+  std::memcpy(&version, file.data() + 8, sizeof version);
+  std::memcpy(&length, file.data() + 12, sizeof length);
+  if (version != kVersion) {
+    throw std::runtime_error("checkpoint " + path + " has format version " + std::to_string(version) +
+                             ", this hns reads version " + std::to_string(kVersion));
+  }
+  if (length != file.size() - kHeaderBytes - 8) {
+    throw std::runtime_error("checkpoint " + path + " is truncated or padded: header says " +
+                             std::to_string(length) + " payload bytes, the file holds " +
+                             std::to_string(file.size() - kHeaderBytes - 8));
+  }
+  const char* payload = file.data() + kHeaderBytes;
+  uint64_t stored = 0;
+  std::memcpy(&stored, payload + length, sizeof stored);
+  if (fnv1a64(payload, length) != stored) {
+    throw std::runtime_error("checkpoint " + path + " is corrupt: checksum mismatch");
+  }
+
+  return std::string(payload, length);
+}
+
 }  // namespace
 
 void Trainer::save(const std::string& path) const {
@@ -147,39 +180,28 @@ void Trainer::save(const std::string& path) const {
   }
 }
 
-void Trainer::load(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open checkpoint " + path);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  const std::string file = ss.str();
-  if (file.size() < kHeaderBytes + 8 || std::memcmp(file.data(), kMagic, sizeof kMagic) != 0) {
-    throw std::runtime_error("checkpoint " + path + " is not an hns checkpoint (bad magic or too short)");
-  }
-  uint32_t version = 0;
-  uint64_t length = 0;
-  std::memcpy(&version, file.data() + 8, sizeof version);
-  std::memcpy(&length, file.data() + 12, sizeof length);
-  if (version != kVersion) {
-    throw std::runtime_error("checkpoint " + path + " has format version " + std::to_string(version) +
-                             ", this hns reads version " + std::to_string(kVersion));
-  }
-  if (length != file.size() - kHeaderBytes - 8) {
-    throw std::runtime_error("checkpoint " + path + " is truncated or padded: header says " +
-                             std::to_string(length) + " payload bytes, the file holds " +
-                             std::to_string(file.size() - kHeaderBytes - 8));
-  }
-  const char* payload = file.data() + kHeaderBytes;
-  uint64_t stored = 0;
-  std::memcpy(&stored, payload + length, sizeof stored);
-  if (fnv1a64(payload, length) != stored) {
-    throw std::runtime_error("checkpoint " + path + " is corrupt: checksum mismatch");
-  }
+TrainConfig Trainer::checkpoint_config(const std::string& path) {
+  const std::string payload = read_payload(path);
+  Reader r(payload.data(), payload.size(), path);
+  TrainConfig c;
+  c.merge_json(r.get_string(), path + " (config)");
+  return c;
+}
 
+void Trainer::load(const std::string& path, LoadMode mode) {
+  const std::string file = read_payload(path);
+  const char* payload = file.data();
+  const size_t length = file.size();
   Reader r(payload, length, path);
   TrainConfig saved = cfg_;
   saved.merge_json(r.get_string(), path + " (config)");
-  const std::string mismatch = saved.identity_mismatch(cfg_);
+  std::string mismatch = saved.identity_mismatch(cfg_);
+  if (mode == LoadMode::kPolicy) {
+    // Only what shapes the networks must match.
+    mismatch.clear();
+    if (saved.model != cfg_.model) mismatch = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
+    if (saved.scene != cfg_.scene) mismatch = "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
+  }
   if (!mismatch.empty()) {
     throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" + mismatch +
                              ")");
@@ -189,7 +211,7 @@ void Trainer::load(const std::string& path) {
   const auto agent_steps = r.get<int64_t>();
   const auto env_steps = r.get<int64_t>();
   const bool need_restart = r.get<uint8_t>() != 0;
-  std::vector<int32_t> episodes(next_episode_.size());
+  std::vector<int32_t> episodes(mode == LoadMode::kPolicy ? size_t(saved.envs) : next_episode_.size());
   r.get_array(episodes.data(), episodes.size(), "the env episode list");
   const size_t nf = net_->params().buffer_floats();
   nn::FloatBuffer values(nf), m(nf), v(nf);
@@ -213,12 +235,12 @@ void Trainer::load(const std::string& path) {
   vn.debias = r.get<double>();
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
 
+  (void)need_restart;  // a fresh simulator always starts the saved episodes
+  need_restart_ = true;
   iteration_ = iteration;
   agent_steps_ = agent_steps;
   env_steps_ = env_steps;
-  need_restart_ = true;  // a fresh simulator always starts the saved episodes
-  (void)need_restart;
-  next_episode_ = std::move(episodes);
+  if (mode == LoadMode::kResume) next_episode_ = std::move(episodes);
   std::memcpy(net_->params().values(), values.data(), nf * sizeof(float));
   std::memcpy(adam_->m().data(), m.data(), nf * sizeof(float));
   std::memcpy(adam_->v().data(), v.data(), nf * sizeof(float));

@@ -13,6 +13,7 @@
 #include <limits>
 
 #include "physics/rng.hpp"
+#include "ppo/obs_arrays.hpp"
 #include "ppo/ppo_math.hpp"
 
 namespace hns::ppo {
@@ -45,62 +46,6 @@ double ScalarNormalizer::std() const {
   const double m = mean();
   return std::sqrt(std::max(biased_sq / debias - m * m, nn::kObsNormVarFloor));
 }
-
-// One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
-struct ObsArrays {
-  nn::FloatBuffer self, lidar, agents, boxes, ramps;
-  nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;
-  nn::FloatBuffer reset;
-
-  void allocate(const nn::ObsShape& s, size_t rows) {
-    const size_t na = s.num_other_agents();
-    self.resize(rows * s.self_features);
-    lidar.resize(rows * s.lidar_rays);
-    agents.resize(rows * na * s.agent_features);
-    boxes.resize(rows * s.max_boxes * s.box_features);
-    ramps.resize(rows * s.max_ramps * s.ramp_features);
-    agents_seen.resize(rows * na);
-    boxes_seen.resize(rows * s.max_boxes);
-    ramps_seen.resize(rows * s.max_ramps);
-    agents_present.resize(rows * na);
-    boxes_present.resize(rows * s.max_boxes);
-    ramps_present.resize(rows * s.max_ramps);
-    reset.resize(rows);
-  }
-  nn::ObsBatch batch() const {
-    nn::ObsBatch b;
-    b.self = self.data();
-    b.lidar = lidar.data();
-    b.agents = agents.data();
-    b.boxes = boxes.data();
-    b.ramps = ramps.data();
-    b.agents_seen = agents_seen.data();
-    b.boxes_seen = boxes_seen.data();
-    b.ramps_seen = ramps_seen.data();
-    b.agents_present = agents_present.data();
-    b.boxes_present = boxes_present.data();
-    b.ramps_present = ramps_present.data();
-    b.reset = reset.data();
-    return b;
-  }
-  // Calls f(buffer, floats per row) for every array.
-  template <class F>
-  void for_each(const nn::ObsShape& s, F&& f) {
-    const int na = s.num_other_agents();
-    f(self, s.self_features);
-    f(lidar, s.lidar_rays);
-    f(agents, na * s.agent_features);
-    f(boxes, s.max_boxes * s.box_features);
-    f(ramps, s.max_ramps * s.ramp_features);
-    f(agents_seen, na);
-    f(boxes_seen, s.max_boxes);
-    f(ramps_seen, s.max_ramps);
-    f(agents_present, na);
-    f(boxes_present, s.max_boxes);
-    f(ramps_present, s.max_ramps);
-    f(reset, 1);
-  }
-};
 
 struct Trainer::Buffers {
   // Rollout, step-major: row = t * G + g.
@@ -268,26 +213,7 @@ void Trainer::rollout(IterationMetrics& m) {
     Clock::time_point tp = Clock::now();
     const batch::BatchState& s = sim_->state();
     ObsArrays& o = b.obs;
-    const int na = shape.num_other_agents();
-    auto copy = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<float>& src, size_t per_row) {
-      std::memcpy(dst.data() + row0 * per_row, src.data(), sizeof(float) * G * per_row);
-    };
-    auto widen = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<uint8_t>& src, size_t per_row) {
-      float* d = dst.data() + row0 * per_row;
-      const uint8_t* p = src.data();
-      for (size_t i = 0; i < G * per_row; ++i) d[i] = float(p[i]);
-    };
-    copy(o.self, s.obs_self, shape.self_features);
-    copy(o.lidar, s.lidar, shape.lidar_rays);
-    copy(o.agents, s.obs_agents, size_t(na) * shape.agent_features);
-    copy(o.boxes, s.obs_boxes, size_t(shape.max_boxes) * shape.box_features);
-    copy(o.ramps, s.obs_ramps, size_t(shape.max_ramps) * shape.ramp_features);
-    widen(o.agents_seen, s.mask_agents, na);
-    widen(o.boxes_seen, s.mask_boxes, shape.max_boxes);
-    widen(o.ramps_seen, s.mask_ramps, shape.max_ramps);
-    widen(o.agents_present, s.value_mask_agents, na);
-    widen(o.boxes_present, s.value_mask_boxes, shape.max_boxes);
-    widen(o.ramps_present, s.value_mask_ramps, shape.max_ramps);
+    o.copy_step(s, shape, G, row0);
     for (int g = 0; g < G; ++g) {
       b.mask[row0 + g] = s.agent_exists[g];
       const bool starts = t == 0 || b.last[row0 - G + g] != 0;

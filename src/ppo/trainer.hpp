@@ -96,8 +96,15 @@ class Trainer {
   // Checkpoint file (format in docs/training.md): magic, version, payload, FNV-1a 64 checksum. save() writes
   // a temporary file beside `path` and renames it over `path`. load() refuses (std::runtime_error with the
   // reason) a file that is truncated, corrupt, of another version or of a run with another identity.
+  // kResume restores everything and requires every results-affecting key to match; kPolicy restores the
+  // networks, optimiser and normalisers of a checkpoint of the same scene and model (for acting, not for
+  // continuing the run).
+  enum class LoadMode { kResume, kPolicy };
   void save(const std::string& path) const;
-  void load(const std::string& path);
+  void load(const std::string& path, LoadMode mode = LoadMode::kResume);
+  // The config stored in a checkpoint (the file is checked as load() checks it).
+  static TrainConfig checkpoint_config(const std::string& path);
+  const nn::ObsNormalizer& obs_normalizer() const { return *obs_norm_; }
 
  private:
   struct Buffers;

@@ -75,7 +75,7 @@ expect_fail 2 "episodes" play --episodes 0 --out "$tmp/x.traj"
 expect_fail 2 "envs" play --envs 0 --out "$tmp/x.traj"
 expect_fail 2 "out" play --scene quadrant
 expect_fail 2 "hiders" play --hiders 0 --seekers 0 --out "$tmp/x.traj"
-expect_fail 2 "checkpoints need the trainer \(not built yet\)" play --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
+expect_fail 2 "cannot open checkpoint" play --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
 expect_fail 2 "excludes" play --random --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
 expect_fail 1 "cannot write" play --out "$tmp/missing-dir/x.traj"
 expect_fail 2 "html" replay "$tmp/x.traj"
@@ -102,6 +102,69 @@ fi
 head -c 5000 "$tmp/q.traj" >"$tmp/cut.traj"
 expect_fail 2 "episode 0.*truncated" replay "$tmp/cut.traj" --html "$tmp/cut.html"
 [ -e "$tmp/cut.html" ] && { failed=$((failed + 1)); echo "FAIL: replay of a truncated file wrote a page"; }
+
+# hns train: bad configs exit 2 naming the key; a short run writes its folder; resume continues it; a corrupt
+# checkpoint is refused; an existing run is not overwritten by accident; Ctrl-C stops with a checkpoint.
+expect_fail 2 "epochs" train --set epochs=0 --out "$tmp/bad"
+expect_fail 2 "unknown key 'colour'" train --set colour=red --out "$tmp/bad"
+expect_fail 2 "scene" train --scene moon --out "$tmp/bad"
+echo '{"epochs": 2,' >"$tmp/broken.json"
+expect_fail 2 "broken.json" train --config "$tmp/broken.json" --out "$tmp/bad"
+expect_fail 2 "no checkpoint.bin" train --resume "$tmp/nothing-here"
+[ -e "$tmp/bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused train config created its run folder"; }
+echo '{"scene": "lockbox", "envs": 4, "epochs": 1, "minibatches": 2}' >"$tmp/train.json"
+if "$hns" train --config "$tmp/train.json" --iterations 2 --threads 1 --out "$tmp/run" >"$tmp/log" 2>&1 &&
+   [ "$(wc -l <"$tmp/run/metrics.jsonl")" -eq 2 ] && grep -q '"scene": "lockbox"' "$tmp/run/config.json" &&
+   has_fields "$tmp/run/metrics.jsonl" iteration agent_steps env_steps steps_per_s hider_reward seeker_reward \
+     policy_loss value_loss entropy approx_kl clip_frac max_box_move_prep num_box_lock_prep max_ramp_move \
+     num_ramp_lock time_simulate time_observe time_infer time_learn &&
+   [ -s "$tmp/run/checkpoint.bin" ] && [ ! -e "$tmp/run/checkpoint.bin.tmp" ] &&
+   "$hns" train --resume "$tmp/run" --iterations 3 >>"$tmp/log" 2>&1 &&
+   [ "$(wc -l <"$tmp/run/metrics.jsonl")" -eq 3 ] && grep -q "resuming" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: train + resume run"; cat "$tmp/log"
+fi
+expect_fail 2 "already holds a run" train --config "$tmp/train.json" --iterations 2 --out "$tmp/run"
+expect_fail 2 "seed: checkpoint has 1" train --resume "$tmp/run" --seed 5
+cp "$tmp/run/checkpoint.bin" "$tmp/good.bin"
+printf 'x' | dd of="$tmp/run/checkpoint.bin" bs=1 seek=200 conv=notrunc status=none
+expect_fail 2 "corrupt" train --resume "$tmp/run" --iterations 4
+cmp -s "$tmp/run/checkpoint.bin" "$tmp/good.bin" && { failed=$((failed + 1)); echo "FAIL: corruption not applied"; }
+# play --checkpoint records with the trained policy (the run's scene); report renders a run folder.
+cp "$tmp/good.bin" "$tmp/run/checkpoint.bin"
+if "$hns" play --checkpoint "$tmp/run/checkpoint.bin" --episodes 1 --out "$tmp/p.traj" >"$tmp/log" 2>&1 &&
+   grep -q "scene lockbox" "$tmp/log" && grep -q "checkpoint's policy" "$tmp/log" &&
+   "$hns" report "$tmp/run" --html "$tmp/report.html" >>"$tmp/log" 2>&1 && grep -q 'id="hns-status"' "$tmp/report.html"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: play --checkpoint + report"; cat "$tmp/log"
+fi
+expect_fail 2 "trained on scene 'lockbox'" play --checkpoint "$tmp/run/checkpoint.bin" --scene full --out "$tmp/p2.traj"
+expect_fail 2 "not an hns checkpoint" play --checkpoint "$tmp/train.json" --out "$tmp/p2.traj"
+echo '{"iteration": 1, "agent_steps": 5}' >"$tmp/run/metrics.jsonl"
+echo 'garbage' >>"$tmp/run/metrics.jsonl"
+expect_fail 2 "metrics.jsonl:2 is not an iteration record" report "$tmp/run" --html "$tmp/bad.html"
+expect_fail 2 "cannot be read" report "$tmp/nothing" --html "$tmp/bad.html"
+[ -e "$tmp/bad.html" ] && { failed=$((failed + 1)); echo "FAIL: a refused report wrote a page"; }
+# Ctrl-C: the run finishes its iteration, writes a checkpoint and exits 130.
+"$hns" train --config "$tmp/train.json" --iterations 100000 --threads 1 --out "$tmp/int" >"$tmp/int.log" 2>&1 &
+pid=$!
+for _ in $(seq 1 600); do
+  [ -s "$tmp/int/metrics.jsonl" ] && break
+  sleep 0.1
+done
+kill -INT "$pid"
+wait "$pid"
+rc=$?
+if [ "$rc" -eq 130 ] && [ -s "$tmp/int/checkpoint.bin" ] && grep -q "resume" "$tmp/int.log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: Ctrl-C during train -> exit $rc"; cat "$tmp/int.log"
+fi
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

@@ -104,6 +104,24 @@ else
   fail "bench mode: $s"
 fi
 
+# The training report: a short real run (checkpoint, hence a recording, every iteration) rendered as a page
+# that draws its 9 charts from all 3 iterations and embeds the replay of the latest policy.
+if "$hns" train --scene lockbox --envs 4 --iterations 3 --threads 1 --set checkpoint_every=1 --set minibatches=2 \
+     --out "$tmp/run" >"$tmp/log" 2>&1 && "$hns" report "$tmp/run" --html "$tmp/report.html" >>"$tmp/log" 2>&1; then
+  s="$(status "$tmp/report.html" "")"
+  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr charts "$s")" = "9" ] && [ "$(attr points "$s")" = "3" ] &&
+     [ "$(attr replay "$s")" = "1" ] && [ "$(attr series "$s")" -ge 9 ] && ! grep -q 'https\?://' "$tmp/report.html"; then
+    pass
+  else
+    fail "report page: ${s:-<none>}"
+  fi
+  chrome --window-size=1280,1600 --screenshot="$shots/report.png" "file://$tmp/report.html" >/dev/null
+  [ -s "$shots/report.png" ] && pass || fail "screenshot report.png missing"
+else
+  cat "$tmp/log"
+  fail "could not train and report"
+fi
+
 # Screenshots for people to look at.
 chrome --window-size=1280,1000 --screenshot="$shots/replay_full.png" "file://$tmp/f.html#frame=150&lidar=1" >/dev/null
 chrome --window-size=1280,1000 --screenshot="$shots/replay_quadrant.png" "file://$tmp/q.html#episode=1&frame=60" >/dev/null
@@ -114,7 +132,7 @@ for png in replay_full.png replay_quadrant.png; do
     fail "screenshot $png missing or not a PNG"
   fi
 done
-echo "screenshots: $shots/replay_full.png $shots/replay_quadrant.png"
+echo "screenshots: $shots/replay_full.png $shots/replay_quadrant.png $shots/report.png"
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

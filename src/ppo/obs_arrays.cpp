@@ -1,0 +1,30 @@
+#include "ppo/obs_arrays.hpp"
+
+#include <cstring>
+
+namespace hns::ppo {
+
+void ObsArrays::copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
+  auto copy = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<float>& src, size_t per_row) {
+    if (per_row > 0) std::memcpy(dst.data() + row0 * per_row, src.data(), sizeof(float) * rows * per_row);
+  };
+  auto widen = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<uint8_t>& src, size_t per_row) {
+    float* d = dst.data() + row0 * per_row;
+    const uint8_t* p = src.data();
+    for (size_t i = 0; i < rows * per_row; ++i) d[i] = float(p[i]);
+  };
+  const size_t na = size_t(shape.num_other_agents());
+  copy(self, s.obs_self, shape.self_features);
+  copy(lidar, s.lidar, shape.lidar_rays);
+  copy(agents, s.obs_agents, na * shape.agent_features);
+  copy(boxes, s.obs_boxes, size_t(shape.max_boxes) * shape.box_features);
+  copy(ramps, s.obs_ramps, size_t(shape.max_ramps) * shape.ramp_features);
+  widen(agents_seen, s.mask_agents, na);
+  widen(boxes_seen, s.mask_boxes, shape.max_boxes);
+  widen(ramps_seen, s.mask_ramps, shape.max_ramps);
+  widen(agents_present, s.value_mask_agents, na);
+  widen(boxes_present, s.value_mask_boxes, shape.max_boxes);
+  widen(ramps_present, s.value_mask_ramps, shape.max_ramps);
+}
+
+}  // namespace hns::ppo

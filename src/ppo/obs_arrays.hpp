@@ -1,0 +1,70 @@
+// Observation arrays in the float layout the networks read (nn::ObsBatch), for any number of agent rows,
+// and the copy of one batch step's observations and masks into them.
+#pragma once
+
+#include "batch/batch_sim.hpp"
+#include "nn/actor_critic.hpp"
+
+namespace hns::ppo {
+
+// One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
+struct ObsArrays {
+  // Copies the observations and masks of every agent row of the batch's current step (rows = envs x max
+  // agents) into rows [row0, row0 + rows); the reset flags are left to the caller.
+  void copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0);
+
+  nn::FloatBuffer self, lidar, agents, boxes, ramps;
+  nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;
+  nn::FloatBuffer reset;
+
+  void allocate(const nn::ObsShape& s, size_t rows) {
+    const size_t na = s.num_other_agents();
+    self.resize(rows * s.self_features);
+    lidar.resize(rows * s.lidar_rays);
+    agents.resize(rows * na * s.agent_features);
+    boxes.resize(rows * s.max_boxes * s.box_features);
+    ramps.resize(rows * s.max_ramps * s.ramp_features);
+    agents_seen.resize(rows * na);
+    boxes_seen.resize(rows * s.max_boxes);
+    ramps_seen.resize(rows * s.max_ramps);
+    agents_present.resize(rows * na);
+    boxes_present.resize(rows * s.max_boxes);
+    ramps_present.resize(rows * s.max_ramps);
+    reset.resize(rows);
+  }
+  nn::ObsBatch batch() const {
+    nn::ObsBatch b;
+    b.self = self.data();
+    b.lidar = lidar.data();
+    b.agents = agents.data();
+    b.boxes = boxes.data();
+    b.ramps = ramps.data();
+    b.agents_seen = agents_seen.data();
+    b.boxes_seen = boxes_seen.data();
+    b.ramps_seen = ramps_seen.data();
+    b.agents_present = agents_present.data();
+    b.boxes_present = boxes_present.data();
+    b.ramps_present = ramps_present.data();
+    b.reset = reset.data();
+    return b;
+  }
+  // Calls f(buffer, floats per row) for every array.
+  template <class F>
+  void for_each(const nn::ObsShape& s, F&& f) {
+    const int na = s.num_other_agents();
+    f(self, s.self_features);
+    f(lidar, s.lidar_rays);
+    f(agents, na * s.agent_features);
+    f(boxes, s.max_boxes * s.box_features);
+    f(ramps, s.max_ramps * s.ramp_features);
+    f(agents_seen, na);
+    f(boxes_seen, s.max_boxes);
+    f(ramps_seen, s.max_ramps);
+    f(agents_present, na);
+    f(boxes_present, s.max_boxes);
+    f(ramps_present, s.max_ramps);
+    f(reset, 1);
+  }
+};
+
+}  // namespace hns::ppo

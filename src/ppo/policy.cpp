@@ -1,0 +1,71 @@
+#include "ppo/policy.hpp"
+
+#include <stdexcept>
+
+namespace hns::ppo {
+
+namespace {
+constexpr uint64_t kPlayStream = 0xA5A5'0003'0000'0000ULL;
+}
+
+Policy::Policy(const Trainer& trainer, uint64_t seed) : trainer_(&trainer), seed_(seed) {}
+
+Policy::Policy(std::unique_ptr<Trainer> owned, uint64_t seed)
+    : owned_(std::move(owned)), trainer_(owned_.get()), seed_(seed) {}
+
+Policy::~Policy() = default;
+
+std::unique_ptr<Policy> Policy::from_checkpoint(const std::string& path, uint64_t seed) {
+  TrainConfig cfg = Trainer::checkpoint_config(path);
+  cfg.envs = 1;  // the trainer only holds the networks here
+  cfg.threads = 1;
+  cfg.minibatches = 1;
+  auto trainer = std::make_unique<Trainer>(cfg);
+  trainer->load(path, Trainer::LoadMode::kPolicy);
+  return std::unique_ptr<Policy>(new Policy(std::move(trainer), seed));
+}
+
+void Policy::act(const batch::BatchSim& sim, std::span<physics::AgentAction> actions) {
+  const nn::ActorCritic& net = trainer_->net();
+  const nn::ObsShape& shape = net.config().obs;
+  const batch::Layout& L = sim.layout();
+  if (L.max_agents != shape.max_agents || L.max_boxes != shape.max_boxes || L.max_ramps != shape.max_ramps) {
+    throw std::invalid_argument("the policy was trained on scene '" + trainer_->config().scene +
+                                "'; this batch has other entity maxima");
+  }
+  const int E = sim.num_envs(), A = L.max_agents, G = E * A;
+  const int heads = net.heads().num_heads(), sw = net.state_width();
+  if (rows_ != G) {
+    rows_ = G;
+    obs_.allocate(shape, size_t(G));
+    state_p_.resize(size_t(G) * sw);
+    state_v_.resize(size_t(G) * sw);
+    uniforms_.resize(size_t(G) * heads);
+    actions_.assign(size_t(G) * heads, 0);
+    streams_.assign(size_t(E), physics::Rng());
+    stream_episode_.assign(size_t(E), -1);
+  }
+  const batch::BatchState& s = sim.state();
+  obs_.copy_step(s, shape, size_t(G), 0);
+  for (int e = 0; e < E; ++e) {
+    if (stream_episode_[e] != s.episode[e]) {
+      streams_[e] = physics::Rng(seed_ ^ kPlayStream, uint64_t(e), uint64_t(s.episode[e]));
+      stream_episode_[e] = s.episode[e];
+    }
+    for (int a = 0; a < A; ++a) {
+      obs_.reset[size_t(e) * A + a] = s.step_count[e] == 0 ? 1.0f : 0.0f;
+      for (int h = 0; h < heads; ++h)
+        uniforms_[(size_t(e) * A + a) * heads + h] = float(streams_[e].next_u64() >> 40) * 0x1.0p-24f;
+    }
+  }
+  nn::ActorCritic::ActOutputs out;
+  out.actions = actions_.data();
+  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, state_p_.data(), state_v_.data(), uniforms_.data(),
+          out);
+  for (int g = 0; g < G; ++g) {
+    const int32_t* a = actions_.data() + size_t(g) * heads;
+    actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
+  }
+}
+
+}  // namespace hns::ppo

@@ -1,0 +1,47 @@
+// Acting with a trained policy outside training: recordings (`hns play --checkpoint`), replays of a running
+// training, evaluation. Samples every agent's actions from the policy heads like the rollout does, with the
+// LSTM state carried per agent slot and zeroed when its env is at the first step of an episode. The uniforms
+// come from a stream per (seed, env, episode), so an episode's actions depend on nothing else.
+#pragma once
+
+#include <memory>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "physics/rng.hpp"
+#include "ppo/obs_arrays.hpp"
+#include "ppo/trainer.hpp"
+
+namespace hns::ppo {
+
+class Policy {
+ public:
+  // Acts with a trainer's current networks (the trainer must outlive the policy and not train meanwhile).
+  Policy(const Trainer& trainer, uint64_t seed);
+  // Loads the networks of a checkpoint (std::runtime_error naming the problem for a bad file).
+  static std::unique_ptr<Policy> from_checkpoint(const std::string& path, uint64_t seed);
+  ~Policy();
+
+  // The config of the run the networks come from (its scene and model).
+  const TrainConfig& config() const { return trainer_->config(); }
+  // Fills actions (num_envs x max_agents) for the batch's current observations. The batch's layout must be
+  // the one the networks were trained on (same scene).
+  void act(const batch::BatchSim& sim, std::span<physics::AgentAction> actions);
+
+ private:
+  Policy(std::unique_ptr<Trainer> owned, uint64_t seed);
+
+  std::unique_ptr<Trainer> owned_;
+  const Trainer* trainer_;
+  uint64_t seed_;
+  int rows_ = 0;
+  ObsArrays obs_;
+  nn::FloatBuffer state_p_, state_v_, uniforms_;
+  std::vector<int32_t> actions_;
+  std::vector<physics::Rng> streams_;
+  std::vector<int> stream_episode_;
+};
+
+}  // namespace hns::ppo

@@ -1,0 +1,100 @@
+// `hns report`: a training run folder (metrics.jsonl, config.json, replay.traj) as one self-contained HTML
+// page with curves and a replay of the latest checkpoint's policy.
+//
+//   hns report RUN_DIR --html OUT.html [--title TEXT]
+#include <nlohmann/json.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "replay_html.hpp"
+#include "report_html.hpp"
+#include "trajectory.hpp"
+
+namespace hns::tools {
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ReportOptions {
+  std::string dir;
+  std::string html;
+  std::string title;
+};
+
+int run_report(const ReportOptions& opt) {
+  const fs::path dir(opt.dir);
+  const fs::path metrics_path = dir / "metrics.jsonl";
+  std::ifstream in(metrics_path);
+  if (!in) {
+    std::fprintf(stderr, "hns report: %s cannot be read (is %s a run folder of hns train?)\n",
+                 metrics_path.string().c_str(), opt.dir.c_str());
+    return 2;
+  }
+  nlohmann::json metrics = nlohmann::json::array();
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    if (line.empty()) continue;
+    nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
+    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") || !row.contains("agent_steps")) {
+      std::fprintf(stderr, "hns report: %s:%d is not an iteration record (a JSON object with iteration, agent_steps)\n",
+                   metrics_path.string().c_str(), number);
+      return 2;
+    }
+    metrics.push_back(std::move(row));
+  }
+  nlohmann::json config = nlohmann::json::object();
+  {
+    std::ifstream cf(dir / "config.json");
+    if (cf) {
+      config = nlohmann::json::parse(cf, nullptr, false);
+      if (config.is_discarded() || !config.is_object()) {
+        std::fprintf(stderr, "hns report: %s is not a JSON object\n", (dir / "config.json").string().c_str());
+        return 2;
+      }
+    }
+  }
+  std::string replay;
+  const fs::path traj = dir / "replay.traj";
+  if (fs::exists(traj)) {
+    try {
+      const std::string bytes = read_file_bytes(traj.string());
+      const TrajectoryFile file = decode_trajectory(bytes);
+      if (!file.episodes.empty()) replay = render_replay_html(bytes, "replay: " + file.policy);
+    } catch (const TrajectoryError& e) {
+      std::fprintf(stderr, "hns report: warning: %s is unreadable, the report has no replay: %s\n",
+                   traj.string().c_str(), e.what());
+    }
+  }
+  ReportInputs inputs;
+  inputs.title = opt.title.empty() ? "hns training report: " + opt.dir : opt.title;
+  inputs.metrics_json = metrics.dump();
+  inputs.config_json = config.dump();
+  inputs.replay_html = replay;
+  const std::string page = render_report_html(inputs);
+  write_atomically(opt.html, page);
+  std::printf("hns report: wrote %s (%zu iterations%s, %.1f KB); open it in a browser\n", opt.html.c_str(),
+              metrics.size(), replay.empty() ? ", no replay" : ", with a replay", page.size() / 1024.0);
+  return 0;
+}
+
+}  // namespace
+
+void add_report_command(CLI::App& app, std::vector<Command>& commands) {
+  auto opt = std::make_shared<ReportOptions>();
+  CLI::App* cmd = app.add_subcommand("report", "Write a self-contained HTML report of a training run");
+  cmd->add_option("run_dir", opt->dir, "Run folder written by `hns train`")->required();
+  cmd->add_option("--html", opt->html, "HTML file to write")->required();
+  cmd->add_option("--title", opt->title, "Title shown in the page");
+  commands.push_back({cmd, [opt] { return run_report(*opt); }});
+}
+
+}  // namespace hns::tools
