@@ -1,6 +1,7 @@
 // `hns play`: records whole episodes into a trajectory file for `hns replay` (docs/trajectory-format.md).
 //
-//   hns play [--scene quadrant|full|empty|lockbox] [--random | --checkpoint FILE] [--episodes E] [--seed S] [--envs N]
+//   hns play [--scene quadrant|full|empty|lockbox] [--random | --checkpoint FILE] [--episodes E] [--seed S]
+//   [--envs N]
 //            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE
 #include <algorithm>
 #include <cstdio>
@@ -63,8 +64,9 @@ int run_play(const PlayOptions& opt) {
   config.game.seed = opt.seed;
   config.game.validate();
 
-  std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, %s, seed %llu\n", scene.c_str(), opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon,
-              config.game.num_envs, config.game.num_envs == 1 ? "" : "s",
+  std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, %s, seed %llu\n", scene.c_str(),
+              opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon, config.game.num_envs,
+              config.game.num_envs == 1 ? "" : "s",
               policy ? "actions from the checkpoint's policy" : "random actions",
               static_cast<unsigned long long>(opt.seed));
   std::fflush(stdout);
@@ -74,7 +76,8 @@ int run_play(const PlayOptions& opt) {
   TrajectoryWriter writer(opt.out, meta, opt.episodes);
   RandomActions random(opt.seed);
   ActionFn actions = random;
-  if (policy) actions = [&](const batch::BatchSim& sim, std::span<phys::AgentAction> a) { policy->act(sim, a); };
+  if (policy)
+    actions = [&](const batch::BatchSim& sim, std::span<phys::AgentAction> a) { policy->act(sim, a); };
   const RecordSummary summary = record_episodes(config, actions, [&](const TrajectoryEpisode& ep) {
     writer.add(ep);
     std::printf(

@@ -44,9 +44,12 @@ int run_report(const ReportOptions& opt) {
     ++number;
     if (line.empty()) continue;
     nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
-    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") || !row.contains("agent_steps")) {
-      std::fprintf(stderr, "hns report: %s:%d is not an iteration record (a JSON object with iteration, agent_steps)\n",
-                   metrics_path.string().c_str(), number);
+    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
+        !row.contains("agent_steps")) {
+      std::fprintf(
+          stderr,
+          "hns report: %s:%d is not an iteration record (a JSON object with iteration, agent_steps)\n",
+          metrics_path.string().c_str(), number);
       return 2;
     }
     metrics.push_back(std::move(row));

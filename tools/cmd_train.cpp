@@ -105,8 +105,10 @@ int run_train(const TrainOptions& opt) {
   std::string dir = opt.out;
   const bool resume = !opt.resume.empty();
   if (resume) {
-    if (!opt.out.empty()) throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
-    if (!opt.config_file.empty()) throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
+    if (!opt.out.empty())
+      throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
+    if (!opt.config_file.empty())
+      throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
     dir = opt.resume;
     if (!fs::exists(fs::path(dir) / "checkpoint.bin")) {
       throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
@@ -159,13 +161,17 @@ int run_train(const TrainOptions& opt) {
   write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
 
   const batch::Layout& L = trainer.sim().layout();
-  std::printf("hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
-              "%d epochs x %d minibatches, seed %llu\n",
-              cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
-              cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed));
-  if (resume) std::printf("  resuming %s at iteration %lld\n", dir.c_str(), static_cast<long long>(trainer.iteration()));
-  std::printf("  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
-              dir.c_str(), dir.c_str());
+  std::printf(
+      "hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
+      "%d epochs x %d minibatches, seed %llu\n",
+      cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
+      cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed));
+  if (resume)
+    std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
+                static_cast<long long>(trainer.iteration()));
+  std::printf(
+      "  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
+      dir.c_str(), dir.c_str());
   std::fflush(stdout);
 
   g_stop.store(false);
@@ -181,9 +187,8 @@ int run_train(const TrainOptions& opt) {
     try {
       m = trainer.iterate();
     } catch (const ppo::NumericalError& e) {
-      std::fprintf(stderr,
-                   "\nhns train: stopped: %s\n  the last good checkpoint (if any) is kept: %s\n", e.what(),
-                   ckpt.c_str());
+      std::fprintf(stderr, "\nhns train: stopped: %s\n  the last good checkpoint (if any) is kept: %s\n",
+                   e.what(), ckpt.c_str());
       return 3;
     }
     metrics << m.to_json() << "\n";
@@ -192,11 +197,11 @@ int run_train(const TrainOptions& opt) {
     mean_seconds = (mean_seconds * timed + m.seconds) / (timed + 1);
     ++timed;
     const double eta = mean_seconds * double(cfg.iterations - m.iteration);
-    std::printf("iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f  "
-                "ETA %s\n",
-                static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
-                m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl,
-                duration_text(eta).c_str());
+    std::printf(
+        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f  "
+        "ETA %s\n",
+        static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
+        m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, duration_text(eta).c_str());
     std::fflush(stdout);
     const bool last = trainer.iteration() >= cfg.iterations;
     if (last || g_stop.load() || trainer.iteration() % cfg.checkpoint_every == 0) {
@@ -209,9 +214,10 @@ int run_train(const TrainOptions& opt) {
       }
     }
     if (g_stop.load() && !last) {
-      std::printf("hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
-                  "  hns train --resume %s\n",
-                  static_cast<long long>(trainer.iteration()), dir.c_str());
+      std::printf(
+          "hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
+          "  hns train --resume %s\n",
+          static_cast<long long>(trainer.iteration()), dir.c_str());
       status = 130;
       break;
     }
@@ -219,9 +225,10 @@ int run_train(const TrainOptions& opt) {
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
   if (status == 0) {
-    std::printf("hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json, "
-                "replay.traj).\n  Report: hns report %s --html %s/report.html\n",
-                static_cast<long long>(trainer.iteration()), dir.c_str(), dir.c_str(), dir.c_str());
+    std::printf(
+        "hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json, "
+        "replay.traj).\n  Report: hns report %s --html %s/report.html\n",
+        static_cast<long long>(trainer.iteration()), dir.c_str(), dir.c_str(), dir.c_str());
   }
   return status;
 }

@@ -33,8 +33,9 @@ std::string render_report_html(const ReportInputs& in) {
   // Data slots first (their values cannot contain the other slots once escaped), the title last.
   const std::string replay =
       in.replay_html.empty()
-          ? std::string("<p>No recording yet: <code>hns train</code> records two episodes with every "
-                        "checkpoint into the run folder's <code>replay.traj</code>.</p>")
+          ? std::string(
+                "<p>No recording yet: <code>hns train</code> records two episodes with every "
+                "checkpoint into the run folder's <code>replay.traj</code>.</p>")
           : "<iframe title=\"replay\" srcdoc=\"" + html_escape(in.replay_html) + "\"></iframe>";
   if (replace_all(page, "@HNS_METRICS_JSON@", script_safe(in.metrics_json)) != 1 ||
       replace_all(page, "@HNS_CONFIG_JSON@", script_safe(in.config_json)) != 1 ||

@@ -111,8 +111,8 @@ void BatchSim::reset() {
 
 void BatchSim::reset(std::span<const int32_t> episodes) {
   if (!episodes.empty() && int(episodes.size()) != config_.num_envs) {
-    throw std::invalid_argument("BatchSim::reset: " + std::to_string(episodes.size()) + " episode numbers for " +
-                                std::to_string(config_.num_envs) + " envs");
+    throw std::invalid_argument("BatchSim::reset: " + std::to_string(episodes.size()) +
+                                " episode numbers for " + std::to_string(config_.num_envs) + " envs");
   }
   arena_->execute([&] {
     tbb::parallel_for(

@@ -229,10 +229,12 @@ void WorldConfig::validate() const {
   check(task == Task::kHideAndSeek || task == Task::kLockBox, "task", int(task),
         "must be hide_and_seek (0) or lockbox (1)");
   check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
-  check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty, "must be in [0, 1000]");
+  check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty,
+        "must be in [0, 1000]");
   check(shaped_reward_scale >= 0 && shaped_reward_scale <= 1e3, "shaped_reward_scale", shaped_reward_scale,
         "must be in [0, 1000]");
-  check(success_reward >= 0 && success_reward <= 1e3, "success_reward", success_reward, "must be in [0, 1000]");
+  check(success_reward >= 0 && success_reward <= 1e3, "success_reward", success_reward,
+        "must be in [0, 1000]");
   check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
   check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,

@@ -199,12 +199,14 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   if (mode == LoadMode::kPolicy) {
     // Only what shapes the networks must match.
     mismatch.clear();
-    if (saved.model != cfg_.model) mismatch = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
-    if (saved.scene != cfg_.scene) mismatch = "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
+    if (saved.model != cfg_.model)
+      mismatch = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
+    if (saved.scene != cfg_.scene)
+      mismatch = "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
   }
   if (!mismatch.empty()) {
-    throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" + mismatch +
-                             ")");
+    throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" +
+                             mismatch + ")");
   }
   // Read into temporaries first: a refused checkpoint leaves the trainer untouched.
   const auto iteration = r.get<int64_t>();

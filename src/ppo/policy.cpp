@@ -60,8 +60,8 @@ void Policy::act(const batch::BatchSim& sim, std::span<physics::AgentAction> act
   }
   nn::ActorCritic::ActOutputs out;
   out.actions = actions_.data();
-  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, state_p_.data(), state_v_.data(), uniforms_.data(),
-          out);
+  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, state_p_.data(), state_v_.data(),
+          uniforms_.data(), out);
   for (int g = 0; g < G; ++g) {
     const int32_t* a = actions_.data() + size_t(g) * heads;
     actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};

@@ -46,7 +46,8 @@ void visit_fields(Config& c, F&& f) {
 }
 
 std::string field_error(std::string_view key, std::string_view value, std::string_view allowed) {
-  return "config: " + std::string(key) + " = '" + std::string(value) + "' is invalid: " + std::string(allowed);
+  return "config: " + std::string(key) + " = '" + std::string(value) +
+         "' is invalid: " + std::string(allowed);
 }
 
 void parse_into(std::string_view key, std::string_view text, std::string& out) {
@@ -62,8 +63,12 @@ void parse_integer(std::string_view key, std::string_view text, Int& out) {
   }
   out = v;
 }
-void parse_into(std::string_view key, std::string_view text, int& out) { parse_integer(key, text, out); }
-void parse_into(std::string_view key, std::string_view text, uint64_t& out) { parse_integer(key, text, out); }
+void parse_into(std::string_view key, std::string_view text, int& out) {
+  parse_integer(key, text, out);
+}
+void parse_into(std::string_view key, std::string_view text, uint64_t& out) {
+  parse_integer(key, text, out);
+}
 void parse_into(std::string_view key, std::string_view text, double& out) {
   const std::string s(text);
   char* end = nullptr;
@@ -75,9 +80,15 @@ void parse_into(std::string_view key, std::string_view text, double& out) {
   out = v;
 }
 
-std::string text_of(const std::string& v) { return v; }
-std::string text_of(int v) { return std::to_string(v); }
-std::string text_of(uint64_t v) { return std::to_string(v); }
+std::string text_of(const std::string& v) {
+  return v;
+}
+std::string text_of(int v) {
+  return std::to_string(v);
+}
+std::string text_of(uint64_t v) {
+  return std::to_string(v);
+}
 std::string text_of(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.17g", v);
@@ -157,10 +168,14 @@ class FlatJsonReader {
         ++i_;
         if (i_ >= s_.size()) break;
         const char e = s_[i_];
-        if (e == 'n') out += '\n';
-        else if (e == 't') out += '\t';
-        else if (e == '"' || e == '\\' || e == '/') out += e;
-        else fail("unsupported escape in a string");
+        if (e == 'n')
+          out += '\n';
+        else if (e == 't')
+          out += '\t';
+        else if (e == '"' || e == '\\' || e == '/')
+          out += e;
+        else
+          fail("unsupported escape in a string");
       } else {
         out += s_[i_];
       }
@@ -177,7 +192,8 @@ class FlatJsonReader {
     }
     if (i_ == start) fail("expected a value");
     const std::string v(s_.substr(start, i_ - start));
-    if (v == "{" || v == "[" || v.front() == '{' || v.front() == '[') fail("nested objects and arrays are not allowed");
+    if (v == "{" || v == "[" || v.front() == '{' || v.front() == '[')
+      fail("nested objects and arrays are not allowed");
     return v;
   }
 
@@ -202,7 +218,9 @@ void TrainConfig::set(std::string_view key, std::string_view value) {
   });
   if (!found) {
     std::string names;
-    visit_fields(*this, [&](const char* name, auto&, bool) { names += (names.empty() ? "" : ", ") + std::string(name); });
+    visit_fields(*this, [&](const char* name, auto&, bool) {
+      names += (names.empty() ? "" : ", ") + std::string(name);
+    });
     throw ConfigError("config: unknown key '" + std::string(key) + "' (known keys: " + names + ")");
   }
 }

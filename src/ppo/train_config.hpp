@@ -1,9 +1,10 @@
 // Everything a training run is made of, validated, and its flat-JSON form (the `--config` file, the
 // resolved `config.json` of a run folder and the identity stored in checkpoints).
 //
-// Rollouts are aligned to episodes: every iteration runs `episodes_per_iteration` whole episodes in every env,
-// so an iteration starts with fresh episodes and zero LSTM states (what makes resume bit-identical without
-// saving the physics state). GAE windows are therefore whole rollouts (SPEC §14 note in docs/training.md).
+// Rollouts are aligned to episodes: every iteration runs `episodes_per_iteration` whole episodes in every
+// env, so an iteration starts with fresh episodes and zero LSTM states (what makes resume bit-identical
+// without saving the physics state). GAE windows are therefore whole rollouts (SPEC §14 note in
+// docs/training.md).
 #pragma once
 
 #include <cstdint>
@@ -26,11 +27,11 @@ struct TrainConfig {
   uint64_t seed = 1;
   int threads = 0;  // TBB threads for simulation and networks; 0 = every hardware thread
   // PPO (paper appendix B).
-  int epochs = 4;        // passes over the rollout buffer per iteration
-  int minibatches = 4;   // minibatches per epoch (each a set of BPTT chunks)
-  int bptt = 10;         // BPTT truncation: steps per chunk
-  double lr = 3e-4;      // Adam learning rate
-  double clip = 0.2;     // PPO ratio clip ε
+  int epochs = 4;       // passes over the rollout buffer per iteration
+  int minibatches = 4;  // minibatches per epoch (each a set of BPTT chunks)
+  int bptt = 10;        // BPTT truncation: steps per chunk
+  double lr = 3e-4;     // Adam learning rate
+  double clip = 0.2;    // PPO ratio clip ε
   double entropy_coef = 0.01;
   double value_coef = 1.0;  // weight of 0.5·mean(((V - G)/std)²)
   double grad_clip = 5.0;   // global gradient-norm clip (0 = off)

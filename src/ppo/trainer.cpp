@@ -21,7 +21,9 @@ namespace hns::ppo {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+double seconds_since(Clock::time_point t0) {
+  return std::chrono::duration<double>(Clock::now() - t0).count();
+}
 
 // Streams of the counter-derived random numbers (physics::Rng(seed ^ stream, iteration, step)).
 constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
@@ -31,7 +33,9 @@ constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
 // clipped entries, count.
 enum Stat { kPolicyLoss, kValueLoss, kEntropy, kKl, kClipped, kCount, kNumStats };
 
-float uniform_float(physics::Rng& rng) { return float(rng.next_u64() >> 40) * 0x1.0p-24f; }
+float uniform_float(physics::Rng& rng) {
+  return float(rng.next_u64() >> 40) * 0x1.0p-24f;
+}
 
 }  // namespace
 
@@ -50,20 +54,20 @@ double ScalarNormalizer::std() const {
 struct Trainer::Buffers {
   // Rollout, step-major: row = t * G + g.
   ObsArrays obs;
-  std::vector<int32_t> actions;  // [T*G, heads]
-  nn::FloatBuffer logp;          // [T*G] log-probability of the sampled actions
-  nn::FloatBuffer value_norm;    // [T*G] value head (normalised)
-  nn::FloatBuffer value;         // [T*G] de-normalised value
-  nn::FloatBuffer reward;        // [T*G]
-  nn::FloatBuffer adv;           // [T*G] advantages, z-scored
-  nn::FloatBuffer ret;           // [T*G] TD(λ) targets
-  nn::FloatBuffer ret_norm;      // [T*G] normalised targets
-  std::vector<uint8_t> mask;     // [T*G] 1 for a real agent
-  std::vector<uint8_t> last;     // [T*G] 1 if the step ended the agent's episode or the window
+  std::vector<int32_t> actions;      // [T*G, heads]
+  nn::FloatBuffer logp;              // [T*G] log-probability of the sampled actions
+  nn::FloatBuffer value_norm;        // [T*G] value head (normalised)
+  nn::FloatBuffer value;             // [T*G] de-normalised value
+  nn::FloatBuffer reward;            // [T*G]
+  nn::FloatBuffer adv;               // [T*G] advantages, z-scored
+  nn::FloatBuffer ret;               // [T*G] TD(λ) targets
+  nn::FloatBuffer ret_norm;          // [T*G] normalised targets
+  std::vector<uint8_t> mask;         // [T*G] 1 for a real agent
+  std::vector<uint8_t> last;         // [T*G] 1 if the step ended the agent's episode or the window
   nn::FloatBuffer state_p, state_v;  // [T/bptt, G, state width] LSTM states entering each chunk
   // Live rollout state.
-  nn::FloatBuffer cur_p, cur_v;  // [G, state width]
-  nn::FloatBuffer uniforms;      // [G, heads]
+  nn::FloatBuffer cur_p, cur_v;                 // [G, state width]
+  nn::FloatBuffer uniforms;                     // [G, heads]
   std::vector<batch::AgentAction> env_actions;  // [G]
   // Minibatch scratch, sequence-major: row = k * bptt + j.
   ObsArrays mb_obs;
@@ -86,17 +90,19 @@ std::string IterationMetrics::to_json() const {
       "{\"iteration\": %lld, \"agent_steps\": %lld, \"env_steps\": %lld, \"seconds\": %.4f, "
       "\"steps_per_s\": %.1f, \"episodes\": %d, \"hider_reward\": %.6g, \"seeker_reward\": %.6g, "
       "\"max_box_move_prep\": %.6g, \"num_box_lock_prep\": %.6g, \"max_ramp_move_prep\": %.6g, "
-      "\"num_ramp_lock_prep\": %.6g, \"max_box_move\": %.6g, \"num_box_lock\": %.6g, \"max_ramp_move\": %.6g, "
+      "\"num_ramp_lock_prep\": %.6g, \"max_box_move\": %.6g, \"num_box_lock\": %.6g, \"max_ramp_move\": "
+      "%.6g, "
       "\"num_ramp_lock\": %.6g, \"policy_loss\": %.6g, \"value_loss\": %.6g, \"entropy\": %.6g, "
       "\"approx_kl\": %.6g, \"clip_frac\": %.6g, \"explained_variance\": %.6g, \"grad_norm\": %.6g, "
       "\"value_mean\": %.6g, \"value_std\": %.6g, \"time_simulate\": %.4f, \"time_observe\": %.4f, "
       "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_other\": %.4f, "
       "\"unstable_resets\": %lld}",
-      static_cast<long long>(iteration), static_cast<long long>(agent_steps), static_cast<long long>(env_steps),
-      seconds, steps_per_s, episodes, hider_reward, seeker_reward, max_box_move_prep, num_box_lock_prep,
-      max_ramp_move_prep, num_ramp_lock_prep, max_box_move, num_box_lock, max_ramp_move, num_ramp_lock,
-      policy_loss, value_loss, entropy, approx_kl, clip_frac, explained_variance, grad_norm, value_mean,
-      value_std, t_simulate, t_observe, t_infer, t_learn, t_targets, t_other, static_cast<long long>(unstable_resets));
+      static_cast<long long>(iteration), static_cast<long long>(agent_steps),
+      static_cast<long long>(env_steps), seconds, steps_per_s, episodes, hider_reward, seeker_reward,
+      max_box_move_prep, num_box_lock_prep, max_ramp_move_prep, num_ramp_lock_prep, max_box_move,
+      num_box_lock, max_ramp_move, num_ramp_lock, policy_loss, value_loss, entropy, approx_kl, clip_frac,
+      explained_variance, grad_norm, value_mean, value_std, t_simulate, t_observe, t_infer, t_learn,
+      t_targets, t_other, static_cast<long long>(unstable_resets));
   return buf;
 }
 
@@ -234,7 +240,8 @@ void Trainer::rollout(IterationMetrics& m) {
     out.actions = b.actions.data() + row0 * heads;
     out.logp = b.logp.data() + row0;
     out.value = b.value_norm.data() + row0;
-    net_->act(norm, o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(), b.uniforms.data(), out);
+    net_->act(norm, o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(), b.uniforms.data(),
+              out);
     for (int g = 0; g < G; ++g) {
       const int32_t* a = out.actions + size_t(g) * heads;
       b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
@@ -260,7 +267,7 @@ void Trainer::rollout(IterationMetrics& m) {
       ++episodes;
       sum_hider += st.hider_return;
       sum_seeker += st.seeker_return;
-      const float v[8] = {st.max_box_move_prep, st.num_box_lock_prep, st.max_ramp_move_prep,
+      const float v[8] = {st.max_box_move_prep,  st.num_box_lock_prep, st.max_ramp_move_prep,
                           st.num_ramp_lock_prep, st.max_box_move,      st.num_box_lock,
                           st.max_ramp_move,      st.num_ramp_lock};
       for (int k = 0; k < 8; ++k) stat_sums[k] += v[k];
@@ -283,8 +290,9 @@ void Trainer::rollout(IterationMetrics& m) {
   if (episodes > 0) {
     m.hider_reward = sum_hider / episodes;
     m.seeker_reward = sum_seeker / episodes;
-    double* dst[8] = {&m.max_box_move_prep, &m.num_box_lock_prep, &m.max_ramp_move_prep, &m.num_ramp_lock_prep,
-                      &m.max_box_move,      &m.num_box_lock,      &m.max_ramp_move,      &m.num_ramp_lock};
+    double* dst[8] = {&m.max_box_move_prep,  &m.num_box_lock_prep, &m.max_ramp_move_prep,
+                      &m.num_ramp_lock_prep, &m.max_box_move,      &m.num_box_lock,
+                      &m.max_ramp_move,      &m.num_ramp_lock};
     for (int k = 0; k < 8; ++k) *dst[k] = stat_sums[k] / episodes;
   }
 }
@@ -368,7 +376,9 @@ void Trainer::update(IterationMetrics& m) {
     size_t per_row;
   };
   std::vector<ArrayPair> pairs;
-  b.obs.for_each(shape, [&](nn::FloatBuffer& f, int per_row) { pairs.push_back({f.data(), nullptr, size_t(per_row)}); });
+  b.obs.for_each(shape, [&](nn::FloatBuffer& f, int per_row) {
+    pairs.push_back({f.data(), nullptr, size_t(per_row)});
+  });
   size_t next = 0;
   b.mb_obs.for_each(shape, [&](nn::FloatBuffer& f, int) { pairs[next++].to = f.data(); });
   std::erase_if(pairs, [](const ArrayPair& a) { return a.per_row == 0; });
@@ -430,7 +440,8 @@ void Trainer::update(IterationMetrics& m) {
         const PolicyLossStats ps =
             ppo_policy_loss({ls.new_logp.data(), n}, {b.mb_logp.data() + r0, n}, {b.mb_adv.data() + r0, n},
                             mask, clip, {ls.grad_logp.data(), n});
-        const double vl = value_loss({out.value, n}, {b.mb_ret.data() + r0, n}, mask, {ls.grad_value.data(), n});
+        const double vl =
+            value_loss({out.value, n}, {b.mb_ret.data() + r0, n}, mask, {ls.grad_value.data(), n});
         // ppo_math's means are over this chunk's entries; rescale to the minibatch mean.
         const float pscale = float(double(ps.count) * inv_total);
         const float vscale = float(v_coef * double(ps.count) * inv_total);
@@ -458,9 +469,10 @@ void Trainer::update(IterationMetrics& m) {
       bool finite = info.applied;
       for (double v : st) finite = finite && std::isfinite(v);
       if (!finite) {
-        throw NumericalError("iteration " + std::to_string(iteration_ + 1) + ", epoch " + std::to_string(epoch + 1) +
-                             ", minibatch " + std::to_string(mb + 1) + ": the loss or its gradient is not finite" +
-                             " (gradient norm " + std::to_string(info.grad_norm) + ")");
+        throw NumericalError("iteration " + std::to_string(iteration_ + 1) + ", epoch " +
+                             std::to_string(epoch + 1) + ", minibatch " + std::to_string(mb + 1) +
+                             ": the loss or its gradient is not finite" + " (gradient norm " +
+                             std::to_string(info.grad_norm) + ")");
       }
       for (int k = 0; k < kNumStats; ++k) sums[k] += st[k];
       grad_norm_sum += info.grad_norm;

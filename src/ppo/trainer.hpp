@@ -47,7 +47,7 @@ struct ScalarNormalizer {
 
 // What one iteration measured.
 struct IterationMetrics {
-  int64_t iteration = 0;  // 1-based count of iterations done
+  int64_t iteration = 0;    // 1-based count of iterations done
   int64_t agent_steps = 0;  // cumulative over the run, real agents only
   int64_t env_steps = 0;    // cumulative
   double seconds = 0;       // wall time of this iteration
