@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include "batch/batch_sim.hpp"
+
 #include <functional>
 #include <string>
 #include <vector>
@@ -22,6 +24,11 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands);
 void add_replay_command(CLI::App& app, std::vector<Command>& commands);
 void add_train_command(CLI::App& app, std::vector<Command>& commands);
 void add_report_command(CLI::App& app, std::vector<Command>& commands);
+
+// Writes trace events as a Chrome trace (chrome://tracing, ui.perfetto.dev), atomically: one row per
+// thread (TBB worker index; thread -1 is the trainer's own thread, shown as "trainer"), one box per phase
+// (and env, where the event has one).
+void write_chrome_trace(const std::string& path, const std::vector<batch::TraceEvent>& events);
 
 // Writes `text` to `path` atomically: a temporary file beside it, then rename. Throws on failure.
 void write_atomically(const std::string& path, const std::string& text);

@@ -37,23 +37,6 @@ struct BenchOptions {
 
 constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep profiled runs short
 
-// Writes the recorded phases as a Chrome trace (chrome://tracing, Perfetto): one row per thread, one box
-// per env and phase.
-void write_profile(const std::string& path, const std::vector<hns::batch::TraceEvent>& events) {
-  nlohmann::json trace = nlohmann::json::array();
-  for (const hns::batch::TraceEvent& ev : events) {
-    trace.push_back({{"name", ev.phase},
-                     {"cat", "batch"},
-                     {"ph", "X"},
-                     {"ts", ev.begin_ns / 1000.0},
-                     {"dur", (ev.end_ns - ev.begin_ns) / 1000.0},
-                     {"pid", 1},
-                     {"tid", ev.thread},
-                     {"args", {{"env", ev.env}}}});
-  }
-  write_atomically(path, nlohmann::json{{"traceEvents", trace}, {"displayTimeUnit", "ms"}}.dump() + "\n");
-}
-
 // Throughput of the batch simulator with seeded uniformly random actions: env-steps/s, agent-steps/s and
 // the thread time per phase.
 int run_bench(const BenchOptions& opt) {
@@ -142,7 +125,7 @@ int run_bench(const BenchOptions& opt) {
     std::printf("  wrote %s\n", opt.json.c_str());
   }
   if (!opt.profile.empty()) {
-    write_profile(opt.profile, sim.take_trace());
+    write_chrome_trace(opt.profile, sim.take_trace());
     std::printf("  wrote %s (open it in chrome://tracing or ui.perfetto.dev)\n", opt.profile.c_str());
   }
   return 0;

@@ -2,7 +2,7 @@
 // metrics.jsonl and checkpoint.bin (docs/training.md).
 //
 //   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
-//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--overwrite]
+//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--overwrite] [--profile FILE]
 #include <atomic>
 #include <csignal>
 #include <cstdio>
@@ -33,6 +33,7 @@ struct TrainOptions {
   std::vector<std::string> sets;
   std::string out;
   std::string resume;
+  std::string profile;
   bool overwrite = false;
 };
 
@@ -174,11 +175,26 @@ int run_train(const TrainOptions& opt) {
       dir.c_str(), dir.c_str());
   std::fflush(stdout);
 
+  // --profile: the first iterations of this process are traced, then written.
+  constexpr int kProfileIterations = 3;
+  const int64_t profile_until = trainer.iteration() + kProfileIterations;
+  if (!opt.profile.empty()) trainer.set_tracing(true);
+  auto finish_profile = [&] {
+    if (opt.profile.empty()) return;
+    trainer.set_tracing(false);
+    const std::vector<batch::TraceEvent> events = trainer.take_trace();
+    if (events.empty()) return;
+    write_chrome_trace(opt.profile, events);
+    std::printf("  wrote %s (%zu events; open it in chrome://tracing or ui.perfetto.dev)\n",
+                opt.profile.c_str(), events.size());
+  };
+
   g_stop.store(false);
   std::signal(SIGINT, on_interrupt);
   std::signal(SIGTERM, on_interrupt);
   std::ofstream metrics(metrics_path, std::ios::app);
   if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
+  ppo::IterationMetrics totals;  // summed times of this process's iterations
   double mean_seconds = 0;
   int timed = 0;
   int status = 0;
@@ -194,6 +210,17 @@ int run_train(const TrainOptions& opt) {
     metrics << m.to_json() << "\n";
     metrics.flush();
     if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
+    if (trainer.iteration() == profile_until) finish_profile();
+    for (auto [sum, v] : {std::pair{&totals.seconds, m.seconds},
+                          {&totals.t_simulate, m.t_simulate},
+                          {&totals.t_observe, m.t_observe},
+                          {&totals.t_infer, m.t_infer},
+                          {&totals.t_targets, m.t_targets},
+                          {&totals.t_backward, m.t_backward},
+                          {&totals.t_optimizer, m.t_optimizer},
+                          {&totals.t_other, m.t_other}}) {
+      *sum += v;
+    }
     mean_seconds = (mean_seconds * timed + m.seconds) / (timed + 1);
     ++timed;
     const double eta = mean_seconds * double(cfg.iterations - m.iteration);
@@ -224,6 +251,22 @@ int run_train(const TrainOptions& opt) {
   }
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  finish_profile();  // a run shorter than the profiled iterations
+  if (totals.seconds > 0) {
+    const double w = 100.0 / totals.seconds;
+    const batch::PhaseTimes& ph = trainer.sim().phase_times();
+    const double sim_thread = ph.physics + ph.perception + ph.observations + ph.rewards;
+    const double v = sim_thread > 0 ? 100.0 / sim_thread : 0.0;
+    std::printf(
+        "time split: simulate %.1f%% (of its thread time: physics %.0f%%, vision+lidar %.0f%%, "
+        "observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, forward+backward %.1f%%, "
+        "optimizer %.1f%%, everything else %.1f%% (observation copies %.1f%%, targets and gathers %.1f%%, "
+        "other %.1f%%)\n",
+        totals.t_simulate * w, ph.physics * v, ph.perception * v, ph.observations * v, ph.rewards * v,
+        totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
+        (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
+        totals.t_targets * w, totals.t_other * w);
+  }
   if (status == 0) {
     std::printf(
         "hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json, "
@@ -248,6 +291,8 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");
   sub->add_option("--out", opt->out, "Run folder (default runs/SCENE-MODEL-seedS)");
   sub->add_option("--resume", opt->resume, "Continue the run in this folder from its checkpoint");
+  sub->add_option("--profile", opt->profile,
+                  "Write a per-phase Chrome trace (JSON) of the first 3 iterations to this file");
   sub->add_flag("--overwrite", opt->overwrite, "Start over in a --out folder that already holds a run");
   commands.push_back({sub, [opt] { return run_train(*opt); }});
 }

@@ -211,6 +211,8 @@ class BatchSim {
   void set_tracing(bool on);
   // The events recorded since the last call, in env order.
   std::vector<TraceEvent> take_trace();
+  // The time origin of TraceEvent times (when the BatchSim was built).
+  std::chrono::steady_clock::time_point trace_epoch() const { return epoch_; }
   // Env e's occluders as the ray kernel sees them (walls, boxes, ramps, agents).
   ShapesView shapes(int env) const;
   // The underlying world of env e (read-only; tests and tools).

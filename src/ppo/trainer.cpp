@@ -95,7 +95,8 @@ std::string IterationMetrics::to_json() const {
       "\"num_ramp_lock\": %.6g, \"policy_loss\": %.6g, \"value_loss\": %.6g, \"entropy\": %.6g, "
       "\"approx_kl\": %.6g, \"clip_frac\": %.6g, \"explained_variance\": %.6g, \"grad_norm\": %.6g, "
       "\"value_mean\": %.6g, \"value_std\": %.6g, \"time_simulate\": %.4f, \"time_observe\": %.4f, "
-      "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_other\": %.4f, "
+      "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_backward\": %.4f, "
+      "\"time_optimizer\": %.4f, \"time_other\": %.4f, "
       "\"unstable_resets\": %lld}",
       static_cast<long long>(iteration), static_cast<long long>(agent_steps),
       static_cast<long long>(env_steps), seconds, steps_per_s, episodes, hider_reward, seeker_reward,
@@ -157,6 +158,29 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
 
 Trainer::~Trainer() = default;
 
+void Trainer::set_tracing(bool on) {
+  tracing_ = on;
+  sim_->set_tracing(on);
+}
+
+std::vector<batch::TraceEvent> Trainer::take_trace() {
+  std::vector<batch::TraceEvent> all = sim_->take_trace();
+  all.insert(all.end(), trace_.begin(), trace_.end());
+  trace_.clear();
+  return all;
+}
+
+Clock::time_point Trainer::mark(const char* phase, Clock::time_point begin) {
+  const Clock::time_point now = Clock::now();
+  if (tracing_) {
+    const auto ns = [&](Clock::time_point t) {
+      return std::chrono::duration_cast<std::chrono::nanoseconds>(t - sim_->trace_epoch()).count();
+    };
+    trace_.push_back({phase, ns(begin), ns(now), -1, -1});
+  }
+  return now;
+}
+
 void Trainer::restart_envs() {
   sim_->reset(next_episode_);
   need_restart_ = false;
@@ -173,6 +197,7 @@ IterationMetrics Trainer::iterate() {
     const Clock::time_point t_learn = Clock::now();
     compute_targets(m);
     m.t_targets += seconds_since(t_learn);
+    mark("targets", t_learn);
     update(m);
     m.t_learn = seconds_since(t_learn);
     // The observation statistics move after the update, so that a rollout and the update of its data see
@@ -182,6 +207,7 @@ IterationMetrics Trainer::iterate() {
     obs_norm_->update(o.self.data(), o.lidar.data(), o.agents.data(), o.boxes.data(), o.ramps.data(),
                       rollout_steps_ * rows_);
     m.t_observe += seconds_since(t_obs);
+    mark("observation normaliser", t_obs);
   });
   ++iteration_;
   m.iteration = iteration_;
@@ -233,9 +259,9 @@ void Trainer::rollout(IterationMetrics& m) {
     physics::Rng rng(cfg_.seed ^ kActionStream, uint64_t(iteration_), uint64_t(t));
     for (int i = 0; i < G * heads; ++i) b.uniforms[i] = uniform_float(rng);
     m.t_observe += seconds_since(tp);
+    tp = mark("observe", tp);
 
     // Infer.
-    tp = Clock::now();
     nn::ActorCritic::ActOutputs out;
     out.actions = b.actions.data() + row0 * heads;
     out.logp = b.logp.data() + row0;
@@ -248,13 +274,13 @@ void Trainer::rollout(IterationMetrics& m) {
       b.value[row0 + g] = float(b.value_norm[row0 + g] * vstd + vmean);
     }
     m.t_infer += seconds_since(tp);
+    tp = mark("infer", tp);
 
     // Simulate.
-    tp = Clock::now();
     sim_->step(b.env_actions);
     m.t_simulate += seconds_since(tp);
+    tp = mark("simulate", tp);
 
-    tp = Clock::now();
     for (int e = 0; e < E; ++e) {
       for (int a = 0; a < A; ++a) {
         const size_t r = row0 + size_t(e) * A + a;
@@ -273,6 +299,7 @@ void Trainer::rollout(IterationMetrics& m) {
       for (int k = 0; k < 8; ++k) stat_sums[k] += v[k];
     }
     m.t_observe += seconds_since(tp);
+    mark("observe", tp);
   }
 
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
@@ -424,6 +451,7 @@ void Trainer::update(IterationMetrics& m) {
       int64_t total = 0;
       for (int i = 0; i < S * bptt; ++i) total += b.mb_mask[i];
       m.t_targets += seconds_since(t_gather);
+      Clock::time_point tp = mark("gather", t_gather);
       if (total == 0) continue;
       const double inv_total = 1.0 / double(total);
       const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
@@ -465,7 +493,11 @@ void Trainer::update(IterationMetrics& m) {
       float* grads = net_->params().grads();
       net_->forward_backward(norm, b.mb_obs.batch(), S, bptt, b.mb_state_p.data(), b.mb_state_v.data(), loss,
                              std::span<double>(st, kNumStats), grads);
+      m.t_backward += seconds_since(tp);
+      tp = mark("forward+backward", tp);
       const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);
+      m.t_optimizer += seconds_since(tp);
+      mark("optimizer", tp);
       bool finite = info.applied;
       for (double v : st) finite = finite && std::isfinite(v);
       if (!finite) {

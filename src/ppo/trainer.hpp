@@ -22,6 +22,7 @@
 
 #include <array>
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <string>
@@ -63,8 +64,10 @@ struct IterationMetrics {
   double value_mean = 0, value_std = 0;  // value-target normaliser after the update
   // Wall seconds per phase: simulate (BatchSim::step), observe (copy of observations and masks into the
   // buffer, normaliser update), infer (ActorCritic::act), learn (targets, gathers, forward/backward, Adam);
-  // t_targets is the part of learn outside the networks and Adam (GAE, normalisers, minibatch gathers).
-  double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_targets = 0, t_other = 0;
+  // learn = t_targets (GAE, value normaliser, minibatch gathers: outside the networks) + t_backward
+  // (forward + loss + backward of the minibatches) + t_optimizer (Adam).
+  double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
+  double t_targets = 0, t_backward = 0, t_optimizer = 0;
   int64_t unstable_resets = 0;  // envs reset by numerical trouble since the start of this process
 
   std::string to_json() const;  // one line, no newline
@@ -106,12 +109,20 @@ class Trainer {
   static TrainConfig checkpoint_config(const std::string& path);
   const nn::ObsNormalizer& obs_normalizer() const { return *obs_norm_; }
 
+  // While on, iterations record their phases (rollout: observe, infer, simulate per step, with the batch's
+  // per-env phases; learn: targets, gather, forward+backward and optimizer per minibatch) as trace events;
+  // the trainer's own are on thread -1. Times in ns since sim().trace_epoch().
+  void set_tracing(bool on);
+  std::vector<batch::TraceEvent> take_trace();
+
  private:
   struct Buffers;
   void rollout(IterationMetrics& m);
   void compute_targets(IterationMetrics& m);
   void update(IterationMetrics& m);
   void restart_envs();
+  // Records [begin, now) as a trainer phase when tracing; returns now.
+  std::chrono::steady_clock::time_point mark(const char* phase, std::chrono::steady_clock::time_point begin);
 
   TrainConfig cfg_;
   int rollout_steps_ = 0;  // T
@@ -127,6 +138,8 @@ class Trainer {
   int64_t env_steps_ = 0;
   std::vector<int32_t> next_episode_;  // per env: the episode the next iteration starts
   bool need_restart_ = true;           // envs must be (re)started before the next rollout
+  bool tracing_ = false;
+  std::vector<batch::TraceEvent> trace_;
 };
 
 }  // namespace hns::ppo

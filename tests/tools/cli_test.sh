@@ -149,6 +149,15 @@ echo 'garbage' >>"$tmp/run/metrics.jsonl"
 expect_fail 2 "metrics.jsonl:2 is not an iteration record" report "$tmp/run" --html "$tmp/bad.html"
 expect_fail 2 "cannot be read" report "$tmp/nothing" --html "$tmp/bad.html"
 [ -e "$tmp/bad.html" ] && { failed=$((failed + 1)); echo "FAIL: a refused report wrote a page"; }
+# train --profile writes a Chrome trace with the trainer's phases and the batch's per-env phases.
+if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --out "$tmp/prof" --profile "$tmp/prof.json" \
+     >"$tmp/log" 2>&1 && grep -q '"forward+backward"' "$tmp/prof.json" && grep -q '"optimizer"' "$tmp/prof.json" &&
+   grep -q '"physics"' "$tmp/prof.json" && grep -q '"infer"' "$tmp/prof.json" && grep -q "time split" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: train --profile"; cat "$tmp/log"
+fi
 # Ctrl-C: the run finishes its iteration, writes a checkpoint and exits 130.
 "$hns" train --config "$tmp/train.json" --iterations 100000 --threads 1 --out "$tmp/int" >"$tmp/int.log" 2>&1 &
 pid=$!
