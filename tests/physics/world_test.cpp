@@ -281,6 +281,36 @@ TEST(WorldLock, RampsLockOnlyWhenConfigured) {
   }
 }
 
+TEST(WorldLock, ObjectsLockedAtTheEndOfAnEpisodeArePushableInTheNext) {
+  WorldConfig config = test_config();
+  config.lock_ramps = true;
+  World world(config, 1, 0);
+  const Scene scene = open_scene({agent_at(3.0, 3.0)}, {}, {cube_at(3.0, 2.58)}, {ramp_at(3.0, 3.4)});
+  world.reset_with_scene(scene);
+  ASSERT_EQ(world.object_visibility()[0], 1);
+  // Lock the cube; then face the ramp and lock it too.
+  AgentAction lock = move(5, 5, 5, false, true);
+  world.step({&lock, 1});
+  ASSERT_TRUE(world.object_locked(0));
+  world.set_agent_pose(0, 3.0, 3.0, kAgentRadius, M_PI);  // faces +y, toward the ramp
+  world.set_box_pose(0, 1.0, 1.0, kBoxSize / 2, 0.0);     // out of range, stays locked
+  world.update_visibility();
+  world.step({&lock, 1});
+  ASSERT_TRUE(world.object_locked(0));
+  ASSERT_TRUE(world.object_locked(1));
+  // A new episode on the same scene: nothing is locked, and a push at full force moves both objects.
+  world.reset_with_scene(scene, 1);
+  EXPECT_FALSE(world.object_locked(0));
+  EXPECT_FALSE(world.object_locked(1));
+  const BodyState cube0 = world.box_state(0), ramp0 = world.ramp_state(0);
+  // From below the cube, push along +y: the agent drives the cube into the ramp, which gives way.
+  world.set_agent_pose(0, 3.0, 2.0, kAgentRadius, 0.0);
+  const AgentAction push = move(5, 10);
+  for (int k = 0; k < 10; ++k) world.step({&push, 1});
+  EXPECT_GT(world.box_state(0).pos[1], cube0.pos[1] + 0.1) << "the cube moves again";
+  EXPECT_GT(world.ramp_state(0).pos[1], ramp0.pos[1] + 0.1) << "the ramp moves again";
+}
+
 TEST(WorldPrep, SeekersCannotActDuringPreparation) {
   WorldConfig config = test_config(0.4);
   config.horizon = 10;  // prep = steps 1..4
