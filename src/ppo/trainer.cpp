@@ -103,7 +103,7 @@ std::string IterationMetrics::to_json() const {
       max_box_move_prep, num_box_lock_prep, max_ramp_move_prep, num_ramp_lock_prep, max_box_move,
       num_box_lock, max_ramp_move, num_ramp_lock, policy_loss, value_loss, entropy, approx_kl, clip_frac,
       explained_variance, grad_norm, value_mean, value_std, t_simulate, t_observe, t_infer, t_learn,
-      t_targets, t_other, static_cast<long long>(unstable_resets));
+      t_targets, t_backward, t_optimizer, t_other, static_cast<long long>(unstable_resets));
   return buf;
 }
 

@@ -119,6 +119,20 @@ TEST(Trainer, RunsAnIterationWithFiniteDiagnostics) {
   EXPECT_GT(m.value_loss, 0.0);
   // Zero-sum teams in the quadrant game, out-of-bounds penalties aside.
   EXPECT_NE(m.hider_reward, 0.0);
+  // The time split adds up, and the metrics line carries every part of it.
+  EXPECT_GT(m.t_backward, 0.0);
+  EXPECT_LE(m.t_targets + m.t_backward + m.t_optimizer, m.t_learn + 1e-6);
+  const std::string json = m.to_json();
+  auto field = [&](const std::string& key) {
+    const size_t at = json.find("\"" + key + "\": ");
+    EXPECT_NE(at, std::string::npos) << key;
+    return at == std::string::npos ? -1.0 : std::stod(json.substr(at + key.size() + 4));
+  };
+  EXPECT_NEAR(field("time_backward"), m.t_backward, 1e-4);
+  EXPECT_NEAR(field("time_optimizer"), m.t_optimizer, 1e-4);
+  EXPECT_NEAR(field("time_other"), m.t_other, 1e-4);
+  EXPECT_NEAR(field("policy_loss"), m.policy_loss, 1e-5 * (1 + std::abs(m.policy_loss)));
+  EXPECT_EQ(field("unstable_resets"), double(m.unstable_resets));
 }
 
 TEST(Trainer, BitIdenticalForAnyThreadCount) {
