@@ -44,6 +44,13 @@ class GateStatistics(unittest.TestCase):
         self.assertEqual(row["verdict"], "warning")
         self.assertIn("noise", row["note"])
 
+    def test_slowdown_above_the_noise_with_pairs_not_slower_warns_saying_so(self):
+        base = [100.0, 100.0, 100.0]
+        cur = [106.0, 107.0, 99.0]  # median +6 %, noise 1.5 %, one pair of three faster
+        row = self.verdict(base, cur)
+        self.assertEqual(row["verdict"], "warning")
+        self.assertIn("1 of 3 pairs were not slower", row["note"])
+
     def test_one_disturbed_pair_in_five_does_not_hide_a_large_slowdown(self):
         base = [36.5, 36.0, 37.0, 36.4, 36.8]
         cur = [45.7, 46.0, 45.1, 35.0, 46.3]  # +25 %, one pair where the baseline run was disturbed
