@@ -73,7 +73,13 @@ void truncate_metrics(const std::string& path, int64_t iteration) {
   while (std::getline(in, line)) {
     const auto pos = line.find("\"iteration\": ");
     if (pos == std::string::npos) continue;
-    if (std::stoll(line.substr(pos + 13)) > iteration) break;
+    long long it = 0;
+    try {
+      it = std::stoll(line.substr(pos + 13));
+    } catch (const std::exception&) {
+      break;  // a line cut short by a crash: drop it and what follows
+    }
+    if (it > iteration) break;
     kept += line + "\n";
   }
   in.close();
