@@ -82,7 +82,40 @@ class GateStatistics(unittest.TestCase):
         self.assertEqual(gate.judge_instructions(1000, 1001, 0.025)["verdict"], "ok")
         self.assertIsNone(gate.judge_instructions(None, 1000, 0.025))
 
+    def confirm(self, first_cur, extra_cur):
+        """Five flagged pairs, then the confirmation round's pairs from a fake benchmark runner; returns the
+        verdict on all pairs together, as tools/perf-gate's main does."""
+        base = runs([100.0] * len(first_cur))
+        rows = gate.compare(base, runs(first_cur), 0.05)
+        self.assertEqual(gate.needs_confirmation(rows), ["bm"])
+        times = {"baseline": iter([100.0] * len(extra_cur)), "current": iter(extra_cur)}
+        saved = gate.run_benchmark
+        gate.run_benchmark = lambda build_dir, exe, name, min_time: next(times[build_dir])
+        try:
+            sides = {"baseline": "baseline", "current": "current"}
+            names = {side: [("bench_x", "bm")] for side in sides}
+            extra = gate.run_pairs(sides, names, [("bench_x", "bm")], len(first_cur), len(extra_cur), 0.1)
+        finally:
+            gate.run_benchmark = saved
+        row = gate.compare(base + extra["baseline"], runs(first_cur) + extra["current"], 0.05)[0]
+        self.assertEqual(row["pairs"], len(first_cur) + len(extra_cur))
+        return row["verdict"]
+
+    def test_a_burst_of_load_on_one_side_is_not_confirmed(self):
+        # 4 of 5 pairs disturbed on the current side (+8 %), then 5 undisturbed pairs: not a regression.
+        self.assertNotEqual(self.confirm([108.0, 107.5, 99.0, 108.5, 107.0],
+                                         [100.5, 99.6, 100.2, 99.8, 100.1]), "regression")
+
+    def test_a_real_slowdown_is_confirmed(self):
+        self.assertEqual(self.confirm([110.0, 109.5, 110.5, 110.2, 109.8],
+                                      [110.3, 109.9, 110.1, 110.6, 109.7]), "regression")
+
+    def test_instruction_rows_are_not_re_run(self):
+        row = gate.judge_instructions(1000, 1100, 0.025)
+        self.assertEqual(gate.needs_confirmation([row]), [])
+
     def test_bad_usage_exits_2(self):
+        self.assertEqual(gate.main(["--confirm-pairs", "-1"]), 2)
         self.assertEqual(gate.main(["--pairs", "0"]), 2)
         self.assertEqual(gate.main(["--threshold", "2"]), 2)
         self.assertEqual(gate.main(["--suite", "no-colon"]), 2)
