@@ -22,20 +22,27 @@ ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
 }
 
 void ObsNormalizer::update(const float* self, const float* lidar, const float* agents, const float* boxes,
-                           const float* ramps, int rows) {
+                           const float* ramps, int rows, const uint8_t* row_mask) {
+  int counted_rows = 0;
+  for (int r = 0; r < rows; ++r) counted_rows += (row_mask == nullptr || row_mask[r] != 0) ? 1 : 0;
+  if (counted_rows == 0) return;
   const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps};
   for (int k = 0; k < kNumObsKeys; ++k) {
-    if (data[k] == nullptr || rows == 0) continue;
+    if (data[k] == nullptr || values_per_row_[k] == 0) continue;
     const int f = features_[k];
-    if (values_per_row_[k] == 0) continue;
-    const size_t count = static_cast<size_t>(rows) * values_per_row_[k] / f;
+    const size_t per_row = static_cast<size_t>(values_per_row_[k]);
+    const size_t count = static_cast<size_t>(counted_rows) * per_row / f;
     std::vector<double> sum(f, 0.0);
     std::vector<double> sq(f, 0.0);
-    for (size_t i = 0; i < count; ++i) {
-      for (int j = 0; j < f; ++j) {
-        const double v = data[k][i * f + j];
-        sum[j] += v;
-        sq[j] += v * v;
+    for (int r = 0; r < rows; ++r) {
+      if (row_mask != nullptr && row_mask[r] == 0) continue;
+      const float* row = data[k] + static_cast<size_t>(r) * per_row;
+      for (size_t i = 0; i < per_row; i += static_cast<size_t>(f)) {
+        for (int j = 0; j < f; ++j) {
+          const double v = row[i + j];
+          sum[j] += v;
+          sq[j] += v * v;
+        }
       }
     }
     for (int j = 0; j < f; ++j) {

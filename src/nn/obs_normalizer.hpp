@@ -12,6 +12,7 @@
 #include "nn/tensor.hpp"
 
 #include <array>
+#include <cstdint>
 #include <vector>
 
 namespace hns::nn {
@@ -33,11 +34,13 @@ class ObsNormalizer {
  public:
   explicit ObsNormalizer(const ObsShape& shape, double beta = kObsNormBeta);
 
-  // One EMA update from `rows` agent-steps of raw observations (every row and entity slot counts, padding
-  // included, as in the original). Pointers as in NetInputs; a null key is skipped (its statistics and debias
+  // One EMA update from `rows` agent-steps of raw observations. Every entity slot of a counted row counts,
+  // masked entities included, as in the original; rows whose `row_mask` byte is 0 (padding agents of a
+  // batch, which the original never has) are skipped, and without any counted row nothing changes. A null
+  // row_mask counts every row. Pointers as in NetInputs; a null key is skipped (its statistics and debias
   // term unchanged). Deterministic (sums in index order, in double).
   void update(const float* self, const float* lidar, const float* agents, const float* boxes,
-              const float* ramps, int rows);
+              const float* ramps, int rows, const uint8_t* row_mask = nullptr);
 
   ObsNormView view() const;
   int features(ObsKey key) const { return features_[key]; }

@@ -75,7 +75,8 @@ struct Trainer::Buffers {
   nn::FloatBuffer mb_logp, mb_adv, mb_ret;
   std::vector<uint8_t> mb_mask;
   nn::FloatBuffer mb_state_p, mb_state_v;
-  std::vector<int32_t> chunks;  // valid chunk ids c * G + g
+  std::vector<int32_t> chunks;         // valid chunk ids c * G + g
+  std::vector<int32_t> episode_start;  // [E] rollout step at which each env's current episode started
   // Loss scratch per thread.
   struct LossScratch {
     std::vector<float> new_logp, entropy, grad_logp, d_entropy, grad_value;
@@ -153,6 +154,7 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
   b.cur_v.resize(G * sw);
   b.uniforms.resize(G * heads);
   b.env_actions.resize(G);
+  b.episode_start.assign(size_t(cfg_.envs), 0);
   next_episode_.assign(cfg_.envs, 0);
 }
 
@@ -188,6 +190,7 @@ void Trainer::restart_envs() {
 
 IterationMetrics Trainer::iterate() {
   const Clock::time_point t0 = Clock::now();
+  const int64_t agent_steps_before = agent_steps_;
   IterationMetrics m;
   if (need_restart_) restart_envs();
   const int threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
@@ -205,7 +208,7 @@ IterationMetrics Trainer::iterate() {
     const Clock::time_point t_obs = Clock::now();
     const ObsArrays& o = buf_->obs;
     obs_norm_->update(o.self.data(), o.lidar.data(), o.agents.data(), o.boxes.data(), o.ramps.data(),
-                      rollout_steps_ * rows_);
+                      rollout_steps_ * rows_, buf_->mask.data());
     m.t_observe += seconds_since(t_obs);
     mark("observation normaliser", t_obs);
   });
@@ -218,9 +221,7 @@ IterationMetrics Trainer::iterate() {
   m.unstable_resets = sim_->unstable_resets();
   m.seconds = seconds_since(t0);
   m.t_other = std::max(0.0, m.seconds - m.t_simulate - m.t_observe - m.t_infer - m.t_learn);
-  int64_t real_rows = 0;
-  for (uint8_t v : buf_->mask) real_rows += v;
-  m.steps_per_s = m.seconds > 0 ? double(real_rows) / m.seconds : 0.0;
+  m.steps_per_s = m.seconds > 0 ? double(agent_steps_ - agent_steps_before) / m.seconds : 0.0;
   return m;
 }
 
@@ -238,6 +239,8 @@ void Trainer::rollout(IterationMetrics& m) {
   double sum_hider = 0, sum_seeker = 0;
   double stat_sums[8] = {};
   int episodes = 0;
+  int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
+  std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
 
   for (int t = 0; t < T; ++t) {
     const size_t row0 = size_t(t) * G;
@@ -248,6 +251,7 @@ void Trainer::rollout(IterationMetrics& m) {
     o.copy_step(s, shape, G, row0);
     for (int g = 0; g < G; ++g) {
       b.mask[row0 + g] = s.agent_exists[g];
+      simulated += s.agent_exists[g];
       const bool starts = t == 0 || b.last[row0 - G + g] != 0;
       o.reset[row0 + g] = starts ? 1.0f : 0.0f;
     }
@@ -289,7 +293,16 @@ void Trainer::rollout(IterationMetrics& m) {
       }
     }
     for (const batch::EpisodeStats& st : sim_->finished()) {
-      if (st.discarded) continue;
+      const int first = b.episode_start[st.env];
+      b.episode_start[st.env] = t + 1;
+      if (st.discarded) {
+        // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
+        // rollout leave every loss and statistic, as padding agents do.
+        for (int u = first; u <= t; ++u) {
+          std::fill_n(b.mask.begin() + ptrdiff_t(size_t(u) * G + size_t(st.env) * A), A, uint8_t{0});
+        }
+        continue;
+      }
       ++episodes;
       sum_hider += st.hider_return;
       sum_seeker += st.seeker_return;
@@ -309,9 +322,7 @@ void Trainer::rollout(IterationMetrics& m) {
     next_episode_[e] = s.episode[e] + (s.step_count[e] != 0 ? 1 : 0);
     need_restart_ = need_restart_ || s.step_count[e] != 0;
   }
-  int64_t real = 0;
-  for (uint8_t v : b.mask) real += v;
-  agent_steps_ += real;
+  agent_steps_ += simulated;
   env_steps_ += int64_t(T) * E;
   m.episodes = episodes;
   if (episodes > 0) {

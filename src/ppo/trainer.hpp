@@ -73,7 +73,9 @@ struct IterationMetrics {
   std::string to_json() const;  // one line, no newline
 };
 
-// Raised when a loss or gradient turns non-finite: the run must stop and keep its last good checkpoint.
+// Raised when a loss or gradient turns non-finite: the run must stop and keep its last good checkpoint. The
+// poisoned minibatch is not applied, but earlier minibatches of the iteration already moved the parameters,
+// the Adam moments and the value normaliser: discard the Trainer (or load() the checkpoint) afterwards.
 struct NumericalError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };

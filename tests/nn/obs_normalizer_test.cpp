@@ -5,20 +5,26 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 namespace hns::nn {
 namespace {
 
-TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
+// Two self features, one agent (no others), `boxes` boxes of one feature, no ramps, `rays` lidar rays.
+ObsShape tiny_shape(int boxes, int rays) {
   ObsShape s;
   s.self_features = 2;
   s.max_agents = 1;
-  s.max_boxes = 1;
+  s.max_boxes = boxes;
   s.box_features = 1;
   s.max_ramps = 0;
-  s.lidar_rays = 3;
-  ObsNormalizer n(s, 0.9);
+  s.lidar_rays = rays;
+  return s;
+}
+
+TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
+  ObsNormalizer n(tiny_shape(1, 3), 0.9);
   // Identity before the first update.
   EXPECT_EQ(n.view().mean[kObsSelf][0], 0.0f);
   EXPECT_EQ(n.view().inv_std[kObsSelf][0], 1.0f);
@@ -38,6 +44,31 @@ TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
   EXPECT_NEAR(n.mean(kObsSelf, 0), mean, 1e-12);
   EXPECT_NEAR(n.std(kObsSelf, 0), std::sqrt(sq - mean * mean), 1e-9);
   EXPECT_FLOAT_EQ(n.view().inv_std[kObsSelf][0], static_cast<float>(1.0 / std::sqrt(sq - mean * mean)));
+}
+
+// Padding rows of a batch (agents that do not exist in their env) do not move the statistics: a masked
+// update equals the update from the real rows alone, and an update with no real row changes nothing.
+TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {
+  const ObsShape s = tiny_shape(2, 2);
+  // Rows 0 and 2 are real, row 1 is padding with values that would shift every mean.
+  const std::vector<float> self = {1, 2, 100, 100, 3, 4}, lidar = {1, 1, 100, 100, 3, 3},
+                           boxes = {5, 6, 100, 100, 7, 8};
+  const std::vector<uint8_t> mask = {1, 0, 1};
+  const std::vector<float> self_real = {1, 2, 3, 4}, lidar_real = {1, 1, 3, 3}, boxes_real = {5, 6, 7, 8};
+  ObsNormalizer masked(s, 0.9), real(s, 0.9);
+  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 3, mask.data());
+  real.update(self_real.data(), lidar_real.data(), nullptr, boxes_real.data(), nullptr, 2);
+  for (ObsKey k : {kObsSelf, kObsLidar, kObsBoxes}) {
+    for (int j = 0; j < masked.features(k); ++j) {
+      EXPECT_EQ(masked.mean(k, j), real.mean(k, j)) << "key " << k << " feature " << j;
+      EXPECT_EQ(masked.std(k, j), real.std(k, j)) << "key " << k << " feature " << j;
+    }
+  }
+  EXPECT_NEAR(masked.mean(kObsBoxes, 0), 6.5, 1e-12);
+  const std::vector<uint8_t> none = {0, 0, 0};
+  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 3, none.data());
+  EXPECT_EQ(masked.debias(kObsSelf), real.debias(kObsSelf)) << "no real row: no update";
+  EXPECT_EQ(masked.mean(kObsSelf, 0), real.mean(kObsSelf, 0));
 }
 
 }  // namespace
