@@ -1,22 +1,14 @@
-#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 
 #include "cli.hpp"
+#include "ppo/atomic_file.hpp"
 
 namespace hns::tools {
 
 void write_atomically(const std::string& path, const std::string& text) {
-  const std::filesystem::path target(path);
-  const std::filesystem::path tmp = target.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    if (!out) throw std::runtime_error("cannot write " + tmp.string());
-    out << text;
-    if (!out.flush()) throw std::runtime_error("cannot write " + tmp.string());
-  }
-  std::filesystem::rename(tmp, target);
+  ppo::write_file_atomically(path, text);
 }
 
 void write_chrome_trace(const std::string& path, const std::vector<batch::TraceEvent>& events) {

@@ -12,6 +12,8 @@
 #include <map>
 #include <sstream>
 
+#include <unistd.h>
+
 #include <nlohmann/json.hpp>
 
 namespace hns::tools {
@@ -547,15 +549,18 @@ uint64_t TrajectoryWriter::finish() {
     throw std::logic_error("TrajectoryWriter: " + std::to_string(written_) + " of " +
                            std::to_string(expected_) + " announced episodes written");
   }
-  const bool flushed = std::fflush(out_) == 0;
+  // Flushed to the disk before the rename, so a crash leaves the old file or the whole new one.
+  const bool flushed = std::fflush(out_) == 0 && ::fsync(::fileno(out_)) == 0;
   const bool closed = std::fclose(out_) == 0;
   out_ = nullptr;
-  if (!flushed || !closed) {
+  std::error_code ec;
+  if (flushed && closed) std::filesystem::rename(tmp_, path_, ec);
+  if (!flushed || !closed || ec) {
+    const std::string reason = ec ? ec.message() : std::strerror(errno);
     std::error_code ignored;
     std::filesystem::remove(tmp_, ignored);
-    throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(errno));
+    throw std::runtime_error("cannot write " + path_ + ": " + reason);
   }
-  std::filesystem::rename(tmp_, path_);
   return bytes_;
 }
 

@@ -5,7 +5,6 @@
 // normalisers' state: everything the next iteration reads, so a resumed run is bit-identical.
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -13,6 +12,7 @@
 #include <type_traits>
 #include <vector>
 
+#include "ppo/atomic_file.hpp"
 #include "ppo/trainer.hpp"
 
 namespace hns::ppo {
@@ -162,22 +162,7 @@ void Trainer::save(const std::string& path) const {
   file += payload;
   file.append(reinterpret_cast<const char*>(&sum), sizeof sum);
 
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(file.data(), std::streamsize(file.size()));
-    out.flush();
-    if (!out) {
-      std::remove(tmp.c_str());
-      throw std::runtime_error("cannot write checkpoint " + tmp);
-    }
-  }
-  std::error_code ec;
-  std::filesystem::rename(tmp, path, ec);
-  if (ec) {
-    std::remove(tmp.c_str());
-    throw std::runtime_error("cannot rename " + tmp + " to " + path + ": " + ec.message());
-  }
+  write_file_atomically(path, file);
 }
 
 TrainConfig Trainer::checkpoint_config(const std::string& path) {
@@ -201,8 +186,10 @@ void Trainer::load(const std::string& path, LoadMode mode) {
     mismatch.clear();
     if (saved.model != cfg_.model)
       mismatch = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
-    if (saved.scene != cfg_.scene)
-      mismatch = "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
+    if (saved.scene != cfg_.scene) {
+      mismatch += std::string(mismatch.empty() ? "" : "; ") + "scene: checkpoint has " + saved.scene +
+                  ", this run has " + cfg_.scene;
+    }
   }
   if (!mismatch.empty()) {
     throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" +

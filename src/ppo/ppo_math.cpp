@@ -57,7 +57,7 @@ PolicyLossStats ppo_policy_loss(std::span<const float> new_logp, std::span<const
     const double clipped_ratio = std::clamp(ratio, 1.0 - clip_eps, 1.0 + clip_eps);
     const double surrogate = std::min(unclipped, clipped_ratio * a);
     loss -= surrogate;
-    kl += double(old_logp[i]) - double(new_logp[i]);
+    kl += (ratio - 1.0) - (double(new_logp[i]) - double(old_logp[i]));
     clipped += std::abs(ratio - 1.0) > clip_eps ? 1 : 0;
     // The gradient flows only through the unclipped term when it is the minimum: d(l·A)/d logp = l·A.
     if (unclipped <= clipped_ratio * a) grad_logp[i] = float(-unclipped * inv_n);

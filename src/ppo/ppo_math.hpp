@@ -26,8 +26,9 @@ void gae_window(std::span<const float> rewards, std::span<const float> values, s
 void zscore(std::span<float> x, std::span<const uint8_t> mask, float eps = 1e-8f);
 
 struct PolicyLossStats {
-  double loss = 0;       // -mean(min(l·A, clip(l, 1-ε, 1+ε)·A))
-  double approx_kl = 0;  // mean(old_logp - new_logp)
+  double loss = 0;  // -mean(min(l·A, clip(l, 1-ε, 1+ε)·A))
+  double approx_kl =
+      0;  // mean((r - 1) - log r), r = exp(new_logp - old_logp): an estimate of KL(old || new), >= 0
   double clip_frac = 0;  // share of entries whose ratio left [1-ε, 1+ε]
   int64_t count = 0;     // entries with mask 1
 };

@@ -298,6 +298,16 @@ void TrainConfig::validate() const {
   check(bptt >= 1 && bptt <= 1000, "bptt", bptt, "must be in [1, 1000]");
   check(rollout_steps() % bptt == 0, "bptt", bptt,
         "must divide the rollout length (horizon x episodes_per_iteration)");
+  // The rollout buffer holds every agent slot of every env for every step of an iteration (several KiB of
+  // observations per row); the cap keeps its row indices in 32 bits and its size within a server's memory.
+  const int64_t rows = int64_t(rollout_steps()) * envs * w.max_agents();
+  if (rows > kMaxRolloutRows) {
+    throw ConfigError("envs " + std::to_string(envs) + " x rollout steps " + std::to_string(rollout_steps()) +
+                      " (horizon x episodes_per_iteration) x agent slots " + std::to_string(w.max_agents()) +
+                      " = " + std::to_string(rows) +
+                      " agent-step rows in the rollout buffer: must be at most " +
+                      std::to_string(kMaxRolloutRows) + "; lower envs, episodes_per_iteration or horizon");
+  }
   const int64_t chunks = int64_t(envs) * (rollout_steps() / bptt);
   check(minibatches >= 1 && minibatches <= chunks, "minibatches", minibatches,
         "must be in [1, envs x rollout steps / bptt]");

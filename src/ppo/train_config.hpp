@@ -15,6 +15,9 @@
 
 namespace hns::ppo {
 
+// Most agent-step rows (steps x envs x agent slots) one rollout buffer may hold (validate() refuses more).
+inline constexpr int64_t kMaxRolloutRows = int64_t(1) << 24;
+
 struct TrainConfig {
   // Game and model.
   std::string scene = "quadrant";  // quadrant | full | empty | lockbox (physics::world_preset)

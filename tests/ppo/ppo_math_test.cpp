@@ -75,7 +75,10 @@ TEST(PolicyLoss, HandComputedClippedSurrogate) {
   const double r3 = std::exp(-0.1);
   // Surrogates: 2 (ratio 1), 1.2 (clipped at 1.2), -0.8 (clipped at 0.8), -r3 (inside the clip range).
   EXPECT_NEAR(s.loss, -(2 + 1.2 - 0.8 - r3) / 4, 1e-6);
-  EXPECT_NEAR(s.approx_kl, (0 - 0.5 + 0.5 + 0.1) / 4, 1e-7);
+  // KL estimate per entry: (r - 1) - log r, never negative.
+  const auto k = [](double log_r) { return std::exp(log_r) - 1.0 - log_r; };
+  EXPECT_NEAR(s.approx_kl, (k(0) + k(0.5) + k(-0.5) + k(-0.1)) / 4, 1e-7);
+  EXPECT_GT(s.approx_kl, 0.0);
   EXPECT_DOUBLE_EQ(s.clip_frac, 0.5);
   EXPECT_EQ(s.count, 4);
   EXPECT_NEAR(grad[0], -2.0 / 4, 1e-7);

@@ -71,6 +71,7 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("model", "huge", "small, paper");
   rejects("bptt", "7", "must divide the rollout length");
   rejects("colour", "red", "unknown key 'colour'");
+  rejects("envs", "65536", "agent-step rows in the rollout buffer");  // 80 steps x 65536 envs x 6 slots
 }
 
 TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
@@ -172,6 +173,17 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
     Trainer t(cfg);
     t.iterate();
     t.save(path);
+    t.save(path);  // over an existing checkpoint
+    EXPECT_FALSE(std::filesystem::exists(path + ".tmp")) << "the temporary file is renamed";
+    // A checkpoint that cannot be written says so and leaves nothing behind.
+    const std::string nowhere = temp_path("no-such-folder") + "/checkpoint.bin";
+    try {
+      t.save(nowhere);
+      ADD_FAILURE() << "saved into a missing folder";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("no-such-folder"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(nowhere + ".tmp"));
   }
   std::string bytes;
   {
