@@ -144,10 +144,16 @@ int run_train(const TrainOptions& opt) {
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
   if (!resume) {
-    const bool used = fs::exists(ckpt) || fs::exists(metrics_path);
-    if (used && !opt.overwrite) {
+    // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
+    // (NaN, Ctrl-C during iteration 1) cannot be resumed, so the same command starts it over.
+    if (fs::exists(ckpt) && !opt.overwrite) {
       throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
                                  ", or start over with --overwrite");
+    }
+    if (!fs::exists(ckpt) && fs::exists(metrics_path)) {
+      std::printf(
+          "hns train: %s holds no checkpoint (an earlier run stopped before writing one): starting over\n",
+          dir.c_str());
     }
     fs::create_directories(dir);
     fs::remove(ckpt);
@@ -204,13 +210,23 @@ int run_train(const TrainOptions& opt) {
   double mean_seconds = 0;
   int timed = 0;
   int status = 0;
+  int64_t last_checkpoint = trainer.iteration();  // of the checkpoint on disk (when there is one)
   while (trainer.iteration() < cfg.iterations) {
     ppo::IterationMetrics m;
     try {
       m = trainer.iterate();
     } catch (const ppo::NumericalError& e) {
-      std::fprintf(stderr, "\nhns train: stopped: %s\n  the last good checkpoint (if any) is kept: %s\n",
-                   e.what(), ckpt.c_str());
+      if (fs::exists(ckpt)) {
+        std::fprintf(stderr,
+                     "\nhns train: stopped: %s\n  the last good checkpoint is kept: %s (iteration %lld)\n",
+                     e.what(), ckpt.c_str(), static_cast<long long>(last_checkpoint));
+      } else {
+        std::fprintf(
+            stderr,
+            "\nhns train: stopped: %s\n  no checkpoint was written yet: run the same command to start "
+            "over\n",
+            e.what());
+      }
       return 3;
     }
     metrics << m.to_json() << "\n";
@@ -237,8 +253,10 @@ int run_train(const TrainOptions& opt) {
         m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, duration_text(eta).c_str());
     std::fflush(stdout);
     const bool last = trainer.iteration() >= cfg.iterations;
-    if (last || g_stop.load() || trainer.iteration() % cfg.checkpoint_every == 0) {
+    const bool stop = g_stop.load();  // read once: a signal between two reads must not skip the checkpoint
+    if (last || stop || trainer.iteration() % cfg.checkpoint_every == 0) {
       trainer.save(ckpt);
+      last_checkpoint = trainer.iteration();
       // Episodes of the checkpoint's policy, for `hns report` (a discarded episode just leaves the old file).
       try {
         record_replay(trainer, replay_path, 2);
@@ -246,7 +264,7 @@ int run_train(const TrainOptions& opt) {
         std::fprintf(stderr, "hns train: warning: could not record %s: %s\n", replay_path.c_str(), e.what());
       }
     }
-    if (g_stop.load() && !last) {
+    if (stop && !last) {
       std::printf(
           "hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
           "  hns train --resume %s\n",

@@ -158,6 +158,17 @@ else
   failed=$((failed + 1))
   echo "FAIL: train --profile"; cat "$tmp/log"
 fi
+# A NaN before the first checkpoint stops with exit 3 and says so; the same command then starts over.
+expect_fail 3 "no checkpoint was written yet" train --config "$tmp/train.json" --set inject_nan_at=1 \
+  --iterations 2 --threads 1 --out "$tmp/nan"
+if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --out "$tmp/nan" >"$tmp/log" 2>&1 &&
+   grep -q "holds no checkpoint" "$tmp/log" && [ -s "$tmp/nan/checkpoint.bin" ]; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: train after a NaN stop before the first checkpoint"; cat "$tmp/log"
+fi
+expect_fail 2 "rollout buffer" train --set envs=60000 --set episodes_per_iteration=100 --out "$tmp/huge"
 # Ctrl-C: the run finishes its iteration, writes a checkpoint and exits 130.
 "$hns" train --config "$tmp/train.json" --iterations 100000 --threads 1 --out "$tmp/int" >"$tmp/int.log" 2>&1 &
 pid=$!
