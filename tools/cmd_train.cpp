@@ -145,7 +145,7 @@ int run_train(const TrainOptions& opt) {
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
   if (!resume) {
     // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
-    // (NaN, Ctrl-C during iteration 1) cannot be resumed, so the same command starts it over.
+    // (a NaN or a crash in its first iterations) cannot be resumed, so the same command starts it over.
     if (fs::exists(ckpt) && !opt.overwrite) {
       throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
                                  ", or start over with --overwrite");

@@ -27,8 +27,8 @@ void zscore(std::span<float> x, std::span<const uint8_t> mask, float eps = 1e-8f
 
 struct PolicyLossStats {
   double loss = 0;  // -mean(min(l·A, clip(l, 1-ε, 1+ε)·A))
-  double approx_kl =
-      0;  // mean((r - 1) - log r), r = exp(new_logp - old_logp): an estimate of KL(old || new), >= 0
+  // mean((r - 1) - log r) with r = exp(new_logp - old_logp): an estimate of KL(old || new), never negative.
+  double approx_kl = 0;
   double clip_frac = 0;  // share of entries whose ratio left [1-ε, 1+ε]
   int64_t count = 0;     // entries with mask 1
 };
