@@ -1,6 +1,4 @@
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <stdexcept>
 
 #include "cli.hpp"
 #include "ppo/atomic_file.hpp"
