@@ -35,7 +35,7 @@ void capture(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, int t,
     out[0] = float(st.pos[0]);
     out[1] = float(st.pos[1]);
     out[2] = float(st.pos[2]);
-    out[3] = float(st.yaw);
+    out[3] = float(st.yaw());
   };
   for (int a = 0; a < a_n; ++a) pose(world.agent_state(a), &ep.agent_pose[(f * a_n + a) * 4]);
   for (int b = 0; b < b_n; ++b) pose(world.box_state(b), &ep.box_pose[(f * b_n + b) * 4]);

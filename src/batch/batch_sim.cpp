@@ -279,8 +279,8 @@ void mirror_bodies(int slots, int active, Get&& get, float* pos, float* rot, flo
       pos[3 * i + k] = float(b.pos[k]);
       vel[3 * i + k] = float(b.vel[k]);
     }
-    rot[2 * i] = i < active ? float(std::cos(b.yaw)) : 0.0f;
-    rot[2 * i + 1] = i < active ? float(std::sin(b.yaw)) : 0.0f;
+    rot[2 * i] = float(b.cos_yaw);
+    rot[2 * i + 1] = float(b.sin_yaw);
     angvel[i] = float(b.ang_vel);
   }
 }

@@ -78,18 +78,9 @@ void inject_step_work() {
   }
 }
 
-double wrap_angle(double a) {
-  return std::remainder(a, 2.0 * M_PI);
-}
-
 void set_yaw(dBodyID body, double yaw) {
   const dQuaternion q = {std::cos(0.5 * yaw), 0, 0, std::sin(0.5 * yaw)};
   dBodySetQuaternion(body, q);
-}
-
-double body_yaw(dBodyID body) {
-  const dReal* q = dBodyGetQuaternion(body);
-  return wrap_angle(2.0 * std::atan2(q[3], q[0]));
 }
 
 std::string describe(const char* field, double value, const char* allowed) {
@@ -541,11 +532,10 @@ double World::agent_object_distance(int agent, int object) const {
   if (object < num_boxes()) {
     const BodyState b = box_state(object);
     const Spawn& s = scene_.boxes[object];
-    box = OrientedBox{b.pos[0],   b.pos[1],   b.pos[2],        0.5 * s.sx,
-                      0.5 * s.sy, 0.5 * s.sz, std::cos(b.yaw), std::sin(b.yaw)};
+    box = OrientedBox{b.pos[0], b.pos[1], b.pos[2], 0.5 * s.sx, 0.5 * s.sy, 0.5 * s.sz, b.cos_yaw, b.sin_yaw};
   } else {
     const BodyState r = ramp_state(object - num_boxes());
-    box = wedge_bounds(Wedge{r.pos[0], r.pos[1], r.pos[2], std::cos(r.yaw), std::sin(r.yaw)});
+    box = wedge_bounds(Wedge{r.pos[0], r.pos[1], r.pos[2], r.cos_yaw, r.sin_yaw});
   }
   return distance_to_box(a.pos, box);
 }
@@ -662,7 +652,11 @@ BodyState read_body(dBodyID body) {
     s.pos[i] = p[i];
     s.vel[i] = v[i];
   }
-  s.yaw = body_yaw(body);
+  // A yaw-only quaternion (w, 0, 0, z) rotates by 2·atan2(z, w): cos = (w² - z²)/n, sin = 2wz/n, n = w² + z².
+  const dReal* q = dBodyGetQuaternion(body);
+  const double n = q[0] * q[0] + q[3] * q[3];
+  s.cos_yaw = (q[0] * q[0] - q[3] * q[3]) / n;
+  s.sin_yaw = 2.0 * q[0] * q[3] / n;
   s.ang_vel = w[2];
   return s;
 }
@@ -678,7 +672,7 @@ BodyState World::box_state(int box) const {
 BodyState World::ramp_state(int ramp) const {
   BodyState s = read_body(ode_->ramps[ramp]);
   // Body origin is the wedge centroid; report the bounding-box centre.
-  const double c = std::cos(s.yaw), sn = std::sin(s.yaw);
+  const double c = s.cos_yaw, sn = s.sin_yaw;
   s.pos[0] += sn * kRampCentroidY;
   s.pos[1] -= c * kRampCentroidY;
   s.pos[2] -= kRampCentroidZ;
@@ -714,13 +708,13 @@ Occluders World::occluders() {
   for (int b = 0; b < num_boxes(); ++b) {
     const BodyState s = box_state(b);
     const Spawn& sz = scene_.boxes[b];
-    occ_boxes_.push_back({s.pos[0], s.pos[1], s.pos[2], 0.5 * sz.sx, 0.5 * sz.sy, 0.5 * sz.sz,
-                          std::cos(s.yaw), std::sin(s.yaw)});
+    occ_boxes_.push_back(
+        {s.pos[0], s.pos[1], s.pos[2], 0.5 * sz.sx, 0.5 * sz.sy, 0.5 * sz.sz, s.cos_yaw, s.sin_yaw});
   }
   occ_ramps_.clear();
   for (int r = 0; r < num_ramps(); ++r) {
     const BodyState s = ramp_state(r);
-    occ_ramps_.push_back({s.pos[0], s.pos[1], s.pos[2], std::cos(s.yaw), std::sin(s.yaw)});
+    occ_ramps_.push_back({s.pos[0], s.pos[1], s.pos[2], s.cos_yaw, s.sin_yaw});
   }
   occ_agents_.clear();
   for (int a = 0; a < num_agents(); ++a) {
@@ -734,8 +728,8 @@ void World::update_visibility() {
   const Occluders occ = occluders();
   const int n_obj = num_objects();
   for (int a = 0; a < num_agents(); ++a) {
-    const double yaw = agent_state(a).yaw;
-    const double c = std::cos(yaw), s = std::sin(yaw);
+    const BodyState st = agent_state(a);
+    const double c = st.cos_yaw, s = st.sin_yaw;
     for (int obj = 0; obj < n_obj; ++obj) {
       const bool is_box = obj < num_boxes();
       visibility_[size_t(a) * n_obj + obj] =

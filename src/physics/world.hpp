@@ -6,6 +6,7 @@
 //   -> forces -> substeps {collide, QuickStep, implicit damping, keep yaw-only} -> visibility for next step
 #pragma once
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <span>
@@ -94,9 +95,13 @@ inline double bin_control(int bin) {
 // Pose and velocity of one body, true centre (SPEC §14.1).
 struct BodyState {
   double pos[3];   // m
-  double yaw;      // rad, in (-pi, pi]
+  double cos_yaw;  // yaw as (cos, sin), read from the body's quaternion without trigonometry
+  double sin_yaw;
   double vel[3];   // m/s
   double ang_vel;  // rad/s about z
+
+  // Yaw angle, rad, in [-pi, pi].
+  double yaw() const { return std::atan2(sin_yaw, cos_yaw); }
 };
 
 class World {

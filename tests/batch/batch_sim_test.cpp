@@ -291,8 +291,8 @@ TEST(BatchVision, MatchesScalarReferenceOnRandomEpisodes) {
       physics::World& world = sim.mutable_world(e);
       const physics::Occluders occ = world.occluders();
       for (int a = 0; a < world.num_agents(); ++a) {
-        const double yaw = world.agent_state(a).yaw;
-        const double c = std::cos(yaw), s = std::sin(yaw);
+        const physics::BodyState st = world.agent_state(a);
+        const double c = st.cos_yaw, s = st.sin_yaw;
         for (int j = 0; j < world.num_agents(); ++j) {
           const bool ref = physics::visible(occ, a, c, s, physics::HitKind::kAgent, j);
           disagreed += ref != (sees(sim, e, a, j) != 0);

@@ -143,8 +143,8 @@ Scene grab_scene() {
 void offset_in_agent_frame(const World& world, double& local_x, double& local_y) {
   const BodyState a = world.agent_state(0), b = world.box_state(0);
   const double rel_x = b.pos[0] - a.pos[0], rel_y = b.pos[1] - a.pos[1];
-  local_x = std::cos(a.yaw) * rel_x + std::sin(a.yaw) * rel_y;
-  local_y = -std::sin(a.yaw) * rel_x + std::cos(a.yaw) * rel_y;
+  local_x = a.cos_yaw * rel_x + a.sin_yaw * rel_y;
+  local_y = -a.sin_yaw * rel_x + a.cos_yaw * rel_y;
 }
 
 TEST(WorldGrab, GrabbedBoxFollowsAgentAndIsReleasedWhenBitDrops) {
@@ -161,19 +161,19 @@ TEST(WorldGrab, GrabbedBoxFollowsAgentAndIsReleasedWhenBitDrops) {
   EXPECT_GT(world.box_state(0).pos[0], 4.0) << "the cube travelled with the agent";
   EXPECT_NEAR(local_x, 0.0, 0.03);
   EXPECT_NEAR(local_y, -0.42, 0.03);
-  EXPECT_NEAR(std::remainder(world.box_state(0).yaw - world.agent_state(0).yaw, 2 * M_PI), 0.0, 0.03);
+  EXPECT_NEAR(std::remainder(world.box_state(0).yaw() - world.agent_state(0).yaw(), 2 * M_PI), 0.0, 0.03);
   // Come to rest, then turn in place while holding: the cube swings around and turns with the agent.
   acts[0] = move(5, 5, 5, true);
   for (int k = 0; k < 8; ++k) world.step(acts);
-  const double yaw_before = world.agent_state(0).yaw;
+  const double yaw_before = world.agent_state(0).yaw();
   acts[0] = move(5, 5, 10, true);
   for (int k = 0; k < 3; ++k) world.step(acts);
-  EXPECT_GT(std::abs(std::remainder(world.agent_state(0).yaw - yaw_before, 2 * M_PI)), 0.3)
+  EXPECT_GT(std::abs(std::remainder(world.agent_state(0).yaw() - yaw_before, 2 * M_PI)), 0.3)
       << "the agent turned";
   offset_in_agent_frame(world, local_x, local_y);
   EXPECT_NEAR(local_x, 0.0, 0.03);
   EXPECT_NEAR(local_y, -0.42, 0.03);
-  EXPECT_NEAR(std::remainder(world.box_state(0).yaw - world.agent_state(0).yaw, 2 * M_PI), 0.0, 0.03);
+  EXPECT_NEAR(std::remainder(world.box_state(0).yaw() - world.agent_state(0).yaw(), 2 * M_PI), 0.0, 0.03);
   EXPECT_EQ(world.agent_holding(0), 0);
   // Come to rest, drop the bit and drive away: the cube is released and stays behind.
   acts[0] = move(5, 5, 5, true);
@@ -225,7 +225,7 @@ TEST(WorldLock, LockedBoxDoesNotMoveWhenPushedAtFullForce) {
   for (int k = 0; k < 20; ++k) world.step(acts);
   const BodyState after = world.box_state(0);
   for (int i = 0; i < 3; ++i) EXPECT_EQ(after.pos[i], before.pos[i]);
-  EXPECT_EQ(after.yaw, before.yaw);
+  EXPECT_EQ(after.yaw(), before.yaw());
   EXPECT_LT(world.agent_state(1).pos[0], 2.75 - kAgentRadius + 0.05) << "the seeker is stopped by the cube";
 }
 
@@ -367,7 +367,7 @@ std::vector<double> run_trajectory(const WorldConfig& config, uint64_t seed, uin
     }
     world.step(acts);
     auto add = [&](const BodyState& s) {
-      trace.insert(trace.end(), {s.pos[0], s.pos[1], s.pos[2], s.yaw, s.vel[0]});
+      trace.insert(trace.end(), {s.pos[0], s.pos[1], s.pos[2], s.yaw(), s.vel[0]});
     };
     for (int a = 0; a < world.num_agents(); ++a) add(world.agent_state(a));
     for (int b = 0; b < world.num_boxes(); ++b) add(world.box_state(b));

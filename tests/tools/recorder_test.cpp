@@ -89,7 +89,7 @@ TEST(Recorder, FramesMatchThePlainGameStepForStep) {
       const phys::BodyState s = w.agent_state(a);
       EXPECT_EQ(ep.agent_pose[(size_t(t) * a_n + a) * 4 + 0], float(s.pos[0])) << "t " << t;
       EXPECT_EQ(ep.agent_pose[(size_t(t) * a_n + a) * 4 + 1], float(s.pos[1])) << "t " << t;
-      EXPECT_EQ(ep.agent_pose[(size_t(t) * a_n + a) * 4 + 3], float(s.yaw)) << "t " << t;
+      EXPECT_EQ(ep.agent_pose[(size_t(t) * a_n + a) * 4 + 3], float(s.yaw())) << "t " << t;
       EXPECT_EQ(ep.agent_holding[size_t(t) * a_n + a], w.agent_holding(a));
       for (int j = 0; j < a_n; ++j) {
         EXPECT_EQ(ep.vis_agents[(size_t(t) * a_n + a) * a_n + j], sim.state().vis_agents[a * ma + j]);
