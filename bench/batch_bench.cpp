@@ -1,5 +1,5 @@
-// The batch simulator: the ray kernel behind vision and lidar (rays/s, SIMD vs scalar) and the whole batch
-// step (env-steps/s at 1 and 2 threads) with its per-phase rates.
+// The batch simulator: the ray fan kernel behind vision and lidar (rays/s, SIMD vs scalar) and the whole
+// batch step (env-steps/s at 1 and 2 threads) with its per-phase rates.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -33,26 +33,34 @@ struct FullScene {
   hns::batch::ShapesView shapes() const { return sim.shapes(0); }
 };
 
-// Lidar-like rays from agent 0 in 30 directions; rays/s as items/s.
-template <hns::batch::RayHit (*Cast)(const hns::batch::ShapesView&, const hns::batch::Ray&)>
-void BM_RayFirstHit(benchmark::State& state) {
+// Every agent's 30-ray lidar fan (6 m, horizontal, its own body skipped), as the batch casts them; rays/s
+// as items/s.
+template <void (*Cast)(const hns::batch::ShapesView&, const hns::batch::RayFan&, float*, int32_t*)>
+void BM_RayFan(benchmark::State& state) {
   FullScene scene;
   const hns::batch::ShapesView shapes = scene.shapes();
   const float* p = scene.sim.state().agent_pos.data();
-  std::vector<hns::batch::Ray> rays;
+  float dx[30], dy[30], dz[30], len[30], t[30];
+  int32_t id[30];
   for (int k = 0; k < 30; ++k) {
     const double a = 2 * 3.14159265358979 * k / 30;
-    rays.push_back(
-        {p[0], p[1], p[2], float(std::cos(a)), float(std::sin(a)), 0.0f, 6.0f, shapes.sphere_id(0)});
+    dx[k] = float(std::cos(a)), dy[k] = float(std::sin(a)), dz[k] = 0.0f, len[k] = 6.0f;
   }
+  const int agents = shapes.live_spheres;
   for (auto _ : state) {
-    for (const hns::batch::Ray& r : rays) benchmark::DoNotOptimize(Cast(shapes, r));
+    for (int a = 0; a < agents; ++a) {
+      Cast(shapes,
+           hns::batch::RayFan{p[3 * a], p[3 * a + 1], p[3 * a + 2], dx, dy, dz, len, 30, shapes.sphere_id(a)},
+           t, id);
+      benchmark::DoNotOptimize(t);
+      benchmark::DoNotOptimize(id);
+    }
   }
-  state.SetItemsProcessed(state.iterations() * int64_t(rays.size()));
-  state.counters["shapes"] = shapes.num_boxes + shapes.num_wedges + shapes.num_spheres;
+  state.SetItemsProcessed(state.iterations() * int64_t(agents) * 30);
+  state.counters["shapes"] = shapes.live_boxes + shapes.live_wedges + shapes.live_spheres;
 }
-BENCHMARK(BM_RayFirstHit<hns::batch::first_hit>)->Name("BM_RayFirstHit/simd");
-BENCHMARK(BM_RayFirstHit<hns::batch::first_hit_scalar>)->Name("BM_RayFirstHit/scalar");
+BENCHMARK(BM_RayFan<hns::batch::first_hits>)->Name("BM_RayFan/simd");
+BENCHMARK(BM_RayFan<hns::batch::first_hits_scalar>)->Name("BM_RayFan/scalar");
 
 // Whole batch step of 64 envs with random actions; items/s = env-steps/s. Counters give each phase's rate
 // in env-steps per second of thread time (vision+lidar, observation packing, physics).

@@ -20,10 +20,6 @@ constexpr float kPi = 3.14159265358979323846f;
 constexpr float kOutOfBoundsReward = -10.0f;  // SPEC §5.2
 constexpr float kAgentRadius = float(physics::kAgentRadius);
 
-int round_up(int n, int m) {
-  return (n + m - 1) / m * m;
-}
-
 // Most wall pieces a scene of this config can have (each interior wall splits in two at its door).
 int max_walls(const physics::SceneConfig& scene) {
   switch (scene.layout) {
@@ -36,19 +32,23 @@ int max_walls(const physics::SceneConfig& scene) {
   }
 }
 
-// Lidar directions: world-fixed, 12° apart from +x (SPEC §4.2).
-struct LidarDirections {
-  float cos[Layout::kLidar], sin[Layout::kLidar];
-  LidarDirections() {
+// The lidar fan (SPEC §4.2, §14.6): world-fixed horizontal directions 12° apart from +x, each 6 m long.
+struct LidarFan {
+  float dx[Layout::kLidar], dy[Layout::kLidar], dz[Layout::kLidar], length[Layout::kLidar];
+  LidarFan() {
     for (int k = 0; k < Layout::kLidar; ++k) {
       const double angle = 2.0 * 3.14159265358979323846 * k / Layout::kLidar;
-      cos[k] = float(std::cos(angle));
-      sin[k] = float(std::sin(angle));
+      dx[k] = float(std::cos(angle));
+      dy[k] = float(std::sin(angle));
+      dz[k] = 0.0f;
+      length[k] = float(physics::kLidarRange);
     }
   }
 };
-const LidarDirections kLidarDirs;
+const LidarFan kLidarFan;
 const float kCosHalfCone = float(std::cos(physics::kVisionHalfAngle));
+// Lines of sight one agent casts at most (other agents, boxes, ramps); the scene maxima keep far below it.
+constexpr int kMaxSightLines = 128;
 
 }  // namespace
 
@@ -90,9 +90,13 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
   layout_.max_ramps = scene.ramps.max;
   layout_.max_walls = max_walls(scene);
   layout_.others = std::max(0, layout_.max_agents - 1);
-  layout_.shape_boxes = round_up(std::max(1, layout_.max_walls + layout_.max_boxes), kRayWidth);
-  layout_.shape_wedges = round_up(std::max(1, layout_.max_ramps), kRayWidth);
-  layout_.shape_spheres = round_up(std::max(1, layout_.max_agents), kRayWidth);
+  layout_.shape_boxes = layout_.max_walls + layout_.max_boxes;
+  layout_.shape_wedges = layout_.max_ramps;
+  layout_.shape_spheres = layout_.max_agents;
+  if (layout_.others + layout_.max_boxes + layout_.max_ramps > kMaxSightLines) {
+    throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": more than " +
+                           std::to_string(kMaxSightLines) + " vision targets per agent");
+  }
   state_.allocate(layout_, config_.num_envs);
   worlds_.reserve(config_.num_envs);
   for (int e = 0; e < config_.num_envs; ++e) {
@@ -376,16 +380,29 @@ bool in_cone(const float* viewer_pos, const float* viewer_rot, const float* targ
 
 ShapesView BatchSim::shapes(int env) const {
   const BatchState& s = state_;
+  const physics::World& world = *worlds_[env];
   const size_t b = size_t(env) * layout_.shape_boxes, w = size_t(env) * layout_.shape_wedges;
   const size_t p = size_t(env) * layout_.shape_spheres;
-  return ShapesView{
-      &s.shape_box_cx[b],    &s.shape_box_cy[b],    &s.shape_box_cz[b],   &s.shape_box_hx[b],
-      &s.shape_box_hy[b],    &s.shape_box_hz[b],    &s.shape_box_c[b],    &s.shape_box_s[b],
-      layout_.shape_boxes,   &s.shape_wedge_cx[w],  &s.shape_wedge_cy[w], &s.shape_wedge_cz[w],
-      &s.shape_wedge_c[w],   &s.shape_wedge_s[w],   layout_.shape_wedges, &s.shape_sphere_cx[p],
-      &s.shape_sphere_cy[p], &s.shape_sphere_cz[p], &s.shape_sphere_r[p], layout_.shape_spheres};
+  ShapesView v;
+  v.box_cx = s.shape_box_cx.data() + b, v.box_cy = s.shape_box_cy.data() + b;
+  v.box_cz = s.shape_box_cz.data() + b, v.box_hx = s.shape_box_hx.data() + b;
+  v.box_hy = s.shape_box_hy.data() + b, v.box_hz = s.shape_box_hz.data() + b;
+  v.box_c = s.shape_box_c.data() + b, v.box_s = s.shape_box_s.data() + b;
+  v.num_boxes = layout_.shape_boxes, v.live_boxes = s.num_walls[env] + world.num_boxes();
+  v.wedge_cx = s.shape_wedge_cx.data() + w, v.wedge_cy = s.shape_wedge_cy.data() + w;
+  v.wedge_cz = s.shape_wedge_cz.data() + w, v.wedge_c = s.shape_wedge_c.data() + w;
+  v.wedge_s = s.shape_wedge_s.data() + w;
+  v.num_wedges = layout_.shape_wedges, v.live_wedges = world.num_ramps();
+  v.sphere_cx = s.shape_sphere_cx.data() + p, v.sphere_cy = s.shape_sphere_cy.data() + p;
+  v.sphere_cz = s.shape_sphere_cz.data() + p, v.sphere_r = s.shape_sphere_r.data() + p;
+  v.num_spheres = layout_.shape_spheres, v.live_spheres = world.num_agents();
+  return v;
 }
 
+// Vision (SPEC §4.1): a target is seen when it lies in the viewer's cone and the first shape on the segment
+// from the viewer's centre to the target's centre is the target itself. Each viewer's lines of sight to the
+// targets in its cone form one ray fan. Lidar (§4.2, §14.6): 30 world-fixed horizontal rays per agent, the
+// first hit within 6 m, else 6.
 void BatchSim::perceive_env(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -402,50 +419,54 @@ void BatchSim::perceive_env(int env) {
   uint8_t* vis_boxes = s.vis_boxes.data() + size_t(env) * L.max_agents * L.max_boxes;
   uint8_t* vis_ramps = s.vis_ramps.data() + size_t(env) * L.max_agents * L.max_ramps;
   float* lidar = s.lidar.data() + size_t(env) * L.max_agents * Layout::kLidar;
+  std::fill_n(vis_agents, L.max_agents * L.max_agents, 0);
+  std::fill_n(vis_boxes, L.max_agents * L.max_boxes, 0);
+  std::fill_n(vis_ramps, L.max_agents * L.max_ramps, 0);
+  std::fill_n(lidar, L.max_agents * Layout::kLidar, 0.0f);
 
-  // Visible = in the cone and the first shape on the segment to the target's centre is the target.
-  auto sees = [&](int viewer, const float* target, int target_id) {
-    const float* o = agent_pos + 3 * viewer;
-    if (!in_cone(o, agent_rot + 2 * viewer, target)) return false;
-    const float dx = target[0] - o[0], dy = target[1] - o[1], dz = target[2] - o[2];
-    const float len = std::sqrt(dx * dx + dy * dy + dz * dz);
-    if (len < 1e-6f) return true;
-    const Ray ray{o[0], o[1], o[2], dx / len, dy / len, dz / len, len, shapes.sphere_id(viewer)};
-    return first_hit(shapes, ray).id == target_id;
-  };
+  // One viewer's lines of sight: unit direction and length per target in the cone, the shape id that must
+  // be hit first, and the visibility flag to set.
+  float dx[kMaxSightLines], dy[kMaxSightLines], dz[kMaxSightLines], len[kMaxSightLines], t[kMaxSightLines];
+  int32_t want[kMaxSightLines], hit[kMaxSightLines];
+  uint8_t* flag[kMaxSightLines];
   for (int a = 0; a < L.max_agents; ++a) {
-    const bool viewer = agent_exists[a] != 0;
+    if (agent_exists[a] == 0) continue;
+    const float* o = agent_pos + 3 * a;
+    int n = 0;
+    auto aim = [&](const float* target, int target_id, uint8_t* out) {
+      if (!in_cone(o, agent_rot + 2 * a, target)) return;
+      const float ex = target[0] - o[0], ey = target[1] - o[1], ez = target[2] - o[2];
+      const float d = std::sqrt(ex * ex + ey * ey + ez * ez);
+      if (d < 1e-6f) {
+        *out = 1;  // the same centre: nothing can be in between
+        return;
+      }
+      dx[n] = ex / d, dy[n] = ey / d, dz[n] = ez / d, len[n] = d;
+      want[n] = target_id, flag[n] = out;
+      ++n;
+    };
+    vis_agents[a * L.max_agents + a] = 1;
     for (int j = 0; j < L.max_agents; ++j) {
-      vis_agents[a * L.max_agents + j] =
-          viewer && agent_exists[j] != 0 && (j == a || sees(a, agent_pos + 3 * j, shapes.sphere_id(j))) ? 1
-                                                                                                        : 0;
+      if (j != a && agent_exists[j] != 0)
+        aim(agent_pos + 3 * j, shapes.sphere_id(j), &vis_agents[a * L.max_agents + j]);
     }
     for (int b = 0; b < L.max_boxes; ++b) {
-      vis_boxes[a * L.max_boxes + b] =
-          viewer && box_exists[b] != 0 && sees(a, box_pos + 3 * b, walls + b) ? 1 : 0;
+      if (box_exists[b] != 0) aim(box_pos + 3 * b, walls + b, &vis_boxes[a * L.max_boxes + b]);
     }
     for (int r = 0; r < L.max_ramps; ++r) {
-      vis_ramps[a * L.max_ramps + r] =
-          viewer && ramp_exists[r] != 0 && sees(a, ramp_pos + 3 * r, shapes.wedge_id(r)) ? 1 : 0;
+      if (ramp_exists[r] != 0) aim(ramp_pos + 3 * r, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
     }
-    // Lidar: 30 world-fixed horizontal rays, first hit within 6 m, else 6 (SPEC §14.6).
+    first_hits(shapes, RayFan{o[0], o[1], o[2], dx, dy, dz, len, n, shapes.sphere_id(a)}, t, hit);
+    for (int k = 0; k < n; ++k) *flag[k] = hit[k] == want[k] ? 1 : 0;
+
     float* out = lidar + a * Layout::kLidar;
-    if (!viewer) {
-      std::fill_n(out, Layout::kLidar, 0.0f);
-      continue;
-    }
-    const float* o = agent_pos + 3 * a;
+    int32_t lidar_hit[Layout::kLidar];
+    first_hits(shapes,
+               RayFan{o[0], o[1], o[2], kLidarFan.dx, kLidarFan.dy, kLidarFan.dz, kLidarFan.length,
+                      Layout::kLidar, shapes.sphere_id(a)},
+               out, lidar_hit);
     for (int k = 0; k < Layout::kLidar; ++k) {
-      const Ray ray{o[0],
-                    o[1],
-                    o[2],
-                    kLidarDirs.cos[k],
-                    kLidarDirs.sin[k],
-                    0.0f,
-                    float(physics::kLidarRange),
-                    shapes.sphere_id(a)};
-      const RayHit hit = first_hit(shapes, ray);
-      out[k] = hit.id >= 0 ? hit.t : float(physics::kLidarRange);
+      if (lidar_hit[k] < 0) out[k] = float(physics::kLidarRange);
     }
   }
   // The world's grab and lock use this step's object visibility in the next step.

@@ -35,14 +35,14 @@ struct BatchConfig {
 
 // Per-env sizes of every tensor, fixed per batch by the config's maxima.
 struct Layout {
-  int max_agents = 0;   // A
-  int max_boxes = 0;    // B
-  int max_ramps = 0;    // R
-  int max_walls = 0;    // walls a scene may have
-  int others = 0;       // A - 1 other-agent slots
-  int shape_boxes = 0;  // walls + boxes, padded to kRayWidth
-  int shape_wedges = 0;
-  int shape_spheres = 0;
+  int max_agents = 0;                        // A
+  int max_boxes = 0;                         // B
+  int max_ramps = 0;                         // R
+  int max_walls = 0;                         // walls a scene may have
+  int others = 0;                            // A - 1 other-agent slots
+  int shape_boxes = 0;                       // ray-cast shape slots: walls + boxes
+  int shape_wedges = 0;                      // ramps
+  int shape_spheres = 0;                     // agents
   static constexpr int kSelfFeatures = 11;   // pos 3, cos/sin yaw, vel 3, ang vel, hider, prep
   static constexpr int kAgentFeatures = 11;  // the same for another agent
   static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock

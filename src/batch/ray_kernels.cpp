@@ -4,106 +4,171 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 namespace hns::batch {
 namespace {
 
 constexpr float kRampHalf = 0.25f;  // m, half extent of the ramp's bounding box
 
-// The same arithmetic, written once for a float and once for an xsimd batch (operators and min/max/select
-// are overloaded for both), so the vector and scalar paths agree bit for bit.
-template <class F, class B>
+// The same arithmetic, written once for a float (one ray) and once for an xsimd batch (W rays): operators and
+// these helpers are overloaded for both, so the vector and scalar paths round identically (the build turns
+// FMA contraction off). min/max return their second argument on NaN in both.
+template <class F>
 struct Ops {
+  using B = xsimd::batch_bool<float>;
   static F select(B c, F a, F b) { return xsimd::select(c, a, b); }
   static F min(F a, F b) { return xsimd::min(a, b); }
   static F max(F a, F b) { return xsimd::max(a, b); }
   static F sqrt(F a) { return xsimd::sqrt(a); }
+  static F load(const float* p) { return F::load_unaligned(p); }
 };
 template <>
-struct Ops<float, bool> {
+struct Ops<float> {
+  using B = bool;
   static float select(bool c, float a, float b) { return c ? a : b; }
   static float min(float a, float b) { return a < b ? a : b; }
   static float max(float a, float b) { return a > b ? a : b; }
   static float sqrt(float a) { return std::sqrt(a); }
+  static float load(const float* p) { return *p; }
 };
 
-// Clips [t0, t1] by the half-space n·p <= d along the ray (num = d - n·o, den = n·dir).
-template <class F, class B>
-void clip(F num, F den, F& t0, F& t1, B& empty) {
-  using O = Ops<F, B>;
-  const F zero(0.0f);
-  const F r = num / den;
-  t0 = O::select(den < zero, O::max(t0, r), t0);
-  t1 = O::select(den > zero, O::min(t1, r), t1);
-  empty = empty | ((den == zero) & (num < zero));
-}
-
-// The ray's origin and direction in a shape's yaw frame centred at (cx, cy, cz).
+// One block of a fan's rays (one ray for F = float): directions, their reciprocals and lengths. Yaw leaves z
+// alone, so 1/dz serves every shape; 1/dx and 1/dy serve every shape that is not rotated (the walls).
 template <class F>
-struct LocalRay {
-  F ox, oy, oz, dx, dy, dz;
-  LocalRay(const Ray& ray, F cx, F cy, F cz, F c, F s) {
-    const F px = F(ray.ox) - cx, py = F(ray.oy) - cy;
-    oz = F(ray.oz) - cz;
-    ox = c * px + s * py;
-    oy = c * py - s * px;
-    dx = c * F(ray.dx) + s * F(ray.dy);
-    dy = c * F(ray.dy) - s * F(ray.dx);
-    dz = F(ray.dz);
+struct RayBlock {
+  F dx, dy, dz, inv_dx, inv_dy, inv_dz, max_t;
+  RayBlock(const RayFan& fan, int i)
+      : dx(Ops<F>::load(fan.dx + i)),
+        dy(Ops<F>::load(fan.dy + i)),
+        dz(Ops<F>::load(fan.dz + i)),
+        inv_dx(F(1.0f) / dx),
+        inv_dy(F(1.0f) / dy),
+        inv_dz(F(1.0f) / dz),
+        max_t(Ops<F>::load(fan.max_t + i)) {}
+};
+
+// The parametric interval [t0, t1] of the ray still inside the shape, or empty.
+template <class F>
+struct Interval {
+  using B = typename Ops<F>::B;
+  F t0, t1;
+  B empty;
+  explicit Interval(F max_t) : t0(0.0f), t1(max_t), empty(F(0.0f) > max_t) {}
+
+  // Keeps the part with n·p <= d along a ray whose direction has n·dir = den (inv = 1/den), where
+  // num = d - n·origin is the same for every ray (a scalar per shape).
+  void clip(float num, F den, F inv) {
+    using O = Ops<F>;
+    const F zero(0.0f);
+    const F r = F(num) * inv;  // where the ray crosses the plane; unused when den == 0
+    t0 = O::select(den < zero, O::max(t0, r), t0);
+    t1 = O::select(den > zero, O::min(t1, r), t1);
+    if (num < 0.0f) empty = empty | (den == zero);  // parallel to the plane and outside it
+  }
+  // Keeps the slab |x| <= h, origin at x = o: the two planes of one axis share a reciprocal.
+  void slab(float h, float o, F d, F inv) {
+    clip(h - o, d, inv);
+    clip(h + o, F(0.0f) - d, F(0.0f) - inv);
+  }
+  // Entry distance, or kNoHitT for an empty interval.
+  F entry() const { return Ops<F>::select(empty | (t0 > t1), F(kNoHitT), t0); }
+};
+
+// The fan's origin in a shape's yaw frame centred at (cx, cy, cz): scalars, shared by every ray.
+struct LocalOrigin {
+  float x, y, z;
+  LocalOrigin(const RayFan& fan, float cx, float cy, float cz, float c, float s) {
+    const float px = fan.ox - cx, py = fan.oy - cy;
+    x = c * px + s * py;
+    y = c * py - s * px;
+    z = fan.oz - cz;
   }
 };
 
 // Entry distance into a yaw-rotated box, or kNoHitT.
-template <class F, class B>
-F ray_box(const Ray& ray, F cx, F cy, F cz, F hx, F hy, F hz, F c, F s) {
-  using O = Ops<F, B>;
-  const LocalRay<F> l(ray, cx, cy, cz, c, s);
-  const F ox = l.ox, oy = l.oy, oz = l.oz, dx = l.dx, dy = l.dy, dz = l.dz;
-  F t0(0.0f), t1(ray.max_t);
-  B empty = t0 > t1;
-  clip<F, B>(hx - ox, dx, t0, t1, empty);
-  clip<F, B>(hx + ox, F(0.0f) - dx, t0, t1, empty);
-  clip<F, B>(hy - oy, dy, t0, t1, empty);
-  clip<F, B>(hy + oy, F(0.0f) - dy, t0, t1, empty);
-  clip<F, B>(hz - oz, dz, t0, t1, empty);
-  clip<F, B>(hz + oz, F(0.0f) - dz, t0, t1, empty);
-  return O::select(empty | (t0 > t1), F(kNoHitT), t0);
+template <class F>
+F ray_box(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float cz, float hx, float hy, float hz,
+          float c, float s) {
+  const LocalOrigin o(fan, cx, cy, cz, c, s);
+  Interval<F> in(r.max_t);
+  if (c == 1.0f && s == 0.0f) {
+    // Axis-aligned (every wall): the direction is the world one, exactly as the rotation below would give.
+    in.slab(hx, o.x, r.dx, r.inv_dx);
+    in.slab(hy, o.y, r.dy, r.inv_dy);
+  } else {
+    const F dx = F(c) * r.dx + F(s) * r.dy, dy = F(c) * r.dy - F(s) * r.dx;
+    in.slab(hx, o.x, dx, F(1.0f) / dx);
+    in.slab(hy, o.y, dy, F(1.0f) / dy);
+  }
+  in.slab(hz, o.z, r.dz, r.inv_dz);
+  return in.entry();
 }
 
 // Entry distance into a ramp wedge (local: |x| <= h, y >= -h, z >= -h, y + z <= 0), or kNoHitT.
-template <class F, class B>
-F ray_wedge(const Ray& ray, F cx, F cy, F cz, F c, F s) {
-  using O = Ops<F, B>;
-  const F h(kRampHalf);
-  const LocalRay<F> l(ray, cx, cy, cz, c, s);
-  const F ox = l.ox, oy = l.oy, oz = l.oz, dx = l.dx, dy = l.dy, dz = l.dz;
-  F t0(0.0f), t1(ray.max_t);
-  B empty = t0 > t1;
-  clip<F, B>(h - ox, dx, t0, t1, empty);
-  clip<F, B>(h + ox, F(0.0f) - dx, t0, t1, empty);
-  clip<F, B>(h + oy, F(0.0f) - dy, t0, t1, empty);
-  clip<F, B>(h + oz, F(0.0f) - dz, t0, t1, empty);
-  clip<F, B>(F(0.0f) - (oy + oz), dy + dz, t0, t1, empty);
-  return O::select(empty | (t0 > t1), F(kNoHitT), t0);
+template <class F>
+F ray_wedge(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float cz, float c, float s) {
+  const float h = kRampHalf;
+  const LocalOrigin o(fan, cx, cy, cz, c, s);
+  const F dx = F(c) * r.dx + F(s) * r.dy, dy = F(c) * r.dy - F(s) * r.dx;
+  const F inv_dy = F(1.0f) / dy;
+  const F slope = dy + r.dz;
+  Interval<F> in(r.max_t);
+  in.slab(h, o.x, dx, F(1.0f) / dx);
+  in.clip(h + o.y, F(0.0f) - dy, F(0.0f) - inv_dy);
+  in.clip(h + o.z, F(0.0f) - r.dz, F(0.0f) - r.inv_dz);
+  in.clip(0.0f - (o.y + o.z), slope, F(1.0f) / slope);
+  return in.entry();
 }
 
 // Entry distance into a sphere (0 from inside), or kNoHitT.
-template <class F, class B>
-F ray_sphere(const Ray& ray, F cx, F cy, F cz, F r) {
-  using O = Ops<F, B>;
-  const F mx = F(ray.ox) - cx, my = F(ray.oy) - cy, mz = F(ray.oz) - cz;
-  const F b = mx * F(ray.dx) + my * F(ray.dy) + mz * F(ray.dz);
-  const F c = mx * mx + my * my + mz * mz - r * r;
-  const F disc = b * b - c;
+template <class F>
+F ray_sphere(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float cz, float radius) {
+  using O = Ops<F>;
+  const float mx = fan.ox - cx, my = fan.oy - cy, mz = fan.oz - cz;
+  const float c = mx * mx + my * my + mz * mz - radius * radius;
+  if (c <= 0.0f) return F(0.0f);  // the origin is inside
   const F zero(0.0f);
-  const F t = F(0.0f) - b - O::sqrt(O::max(disc, zero));
-  const B miss = ((b > zero) & (c > zero)) | (disc < zero) | (t > F(ray.max_t));
-  return O::select(c <= zero, zero, O::select(miss, F(kNoHitT), t));
+  const F b = F(mx) * r.dx + F(my) * r.dy + F(mz) * r.dz;
+  const F disc = b * b - F(c);
+  const F t = zero - b - O::sqrt(O::max(disc, zero));
+  const auto miss = (b > zero) | (disc < zero) | (t > r.max_t);
+  return O::select(miss, F(kNoHitT), t);
 }
 
-// Keeps the nearer of (t, id) per lane; equal distances keep the earlier (lower) id.
-void keep_nearest(float t, int id, RayHit& best) {
-  if (t < best.t) best = RayHit{t, id};
+// The nearest hit per lane so far; ids kept as floats (exact below 2^24) so one select moves both.
+template <class F>
+struct Nearest {
+  F t = F(kNoHitT), id = F(-1.0f);
+  void keep(F t_shape, int shape) {
+    const auto nearer = t_shape < t;  // strict: on a tie the earlier (lower) id stays
+    t = Ops<F>::select(nearer, t_shape, t);
+    id = Ops<F>::select(nearer, F(float(shape)), id);
+  }
+};
+
+// Rays [i, i + lanes of F) of the fan against every live shape, in id order.
+template <class F>
+Nearest<F> cast_block(const ShapesView& s, const RayFan& fan, int i) {
+  const RayBlock<F> r(fan, i);
+  Nearest<F> best;
+  for (int k = 0; k < s.live_boxes; ++k) {
+    if (k == fan.skip_id) continue;
+    best.keep(ray_box(fan, r, s.box_cx[k], s.box_cy[k], s.box_cz[k], s.box_hx[k], s.box_hy[k], s.box_hz[k],
+                      s.box_c[k], s.box_s[k]),
+              k);
+  }
+  for (int k = 0; k < s.live_wedges; ++k) {
+    if (s.wedge_id(k) == fan.skip_id) continue;
+    best.keep(ray_wedge(fan, r, s.wedge_cx[k], s.wedge_cy[k], s.wedge_cz[k], s.wedge_c[k], s.wedge_s[k]),
+              s.wedge_id(k));
+  }
+  for (int k = 0; k < s.live_spheres; ++k) {
+    if (s.sphere_id(k) == fan.skip_id) continue;
+    best.keep(ray_sphere(fan, r, s.sphere_cx[k], s.sphere_cy[k], s.sphere_cz[k], s.sphere_r[k]),
+              s.sphere_id(k));
+  }
+  return best;
 }
 
 }  // namespace
@@ -112,61 +177,46 @@ int ray_simd_width() {
   return int(xsimd::batch<float>::size);
 }
 
-RayHit first_hit_scalar(const ShapesView& s, const Ray& ray) {
-  RayHit best{kNoHitT, -1};
-  for (int i = 0; i < s.num_boxes; ++i) {
-    const float t = ray_box<float, bool>(ray, s.box_cx[i], s.box_cy[i], s.box_cz[i], s.box_hx[i], s.box_hy[i],
-                                         s.box_hz[i], s.box_c[i], s.box_s[i]);
-    if (i != ray.skip_id) keep_nearest(t, i, best);
+void first_hits_scalar(const ShapesView& shapes, const RayFan& fan, float* t, int32_t* id) {
+  for (int i = 0; i < fan.count; ++i) {
+    const Nearest<float> best = cast_block<float>(shapes, fan, i);
+    t[i] = best.t;
+    id[i] = int32_t(best.id);
   }
-  for (int i = 0; i < s.num_wedges; ++i) {
-    const float t =
-        ray_wedge<float, bool>(ray, s.wedge_cx[i], s.wedge_cy[i], s.wedge_cz[i], s.wedge_c[i], s.wedge_s[i]);
-    if (s.wedge_id(i) != ray.skip_id) keep_nearest(t, s.wedge_id(i), best);
-  }
-  for (int i = 0; i < s.num_spheres; ++i) {
-    const float t =
-        ray_sphere<float, bool>(ray, s.sphere_cx[i], s.sphere_cy[i], s.sphere_cz[i], s.sphere_r[i]);
-    if (s.sphere_id(i) != ray.skip_id) keep_nearest(t, s.sphere_id(i), best);
-  }
-  if (best.t >= kNoHitT) best.id = -1;
-  return best;
 }
 
-RayHit first_hit(const ShapesView& s, const Ray& ray) {
+void first_hits(const ShapesView& shapes, const RayFan& fan, float* t, int32_t* id) {
   using F = xsimd::batch<float>;
-  using B = xsimd::batch_bool<float>;
   constexpr int W = int(F::size);
-  static_assert(kRayWidth % W == 0, "padding must be a multiple of the SIMD width");
-  alignas(64) float lane_t[W];
-  RayHit best{kNoHitT, -1};
-  // Per block: distances of W shapes at once, then a scalar scan of the block in id order.
-  auto scan = [&](const F& t, int first_id) {
-    t.store_aligned(lane_t);
-    for (int l = 0; l < W; ++l) {
-      if (first_id + l != ray.skip_id) keep_nearest(lane_t[l], first_id + l, best);
-    }
-  };
-  for (int i = 0; i < s.num_boxes; i += W) {
-    const F t = ray_box<F, B>(ray, F::load_unaligned(s.box_cx + i), F::load_unaligned(s.box_cy + i),
-                              F::load_unaligned(s.box_cz + i), F::load_unaligned(s.box_hx + i),
-                              F::load_unaligned(s.box_hy + i), F::load_unaligned(s.box_hz + i),
-                              F::load_unaligned(s.box_c + i), F::load_unaligned(s.box_s + i));
-    if (xsimd::any(t < F(best.t))) scan(t, i);
+  alignas(64) float lane_id[W];
+  // Whole blocks straight from the caller's arrays.
+  int i = 0;
+  for (; i + W <= fan.count; i += W) {
+    const Nearest<F> best = cast_block<F>(shapes, fan, i);
+    best.t.store_unaligned(t + i);
+    best.id.store_aligned(lane_id);
+    for (int l = 0; l < W; ++l) id[i + l] = int32_t(lane_id[l]);
   }
-  for (int i = 0; i < s.num_wedges; i += W) {
-    const F t = ray_wedge<F, B>(ray, F::load_unaligned(s.wedge_cx + i), F::load_unaligned(s.wedge_cy + i),
-                                F::load_unaligned(s.wedge_cz + i), F::load_unaligned(s.wedge_c + i),
-                                F::load_unaligned(s.wedge_s + i));
-    if (xsimd::any(t < F(best.t))) scan(t, s.wedge_id(i));
+  if (i == fan.count) return;
+  // The tail: copied into a full block whose spare lanes are zero-length rays along +x, results dropped.
+  alignas(64) float dx[W], dy[W], dz[W], max_t[W], lane_t[W];
+  const int n = fan.count - i;
+  for (int l = 0; l < W; ++l) {
+    const bool real = l < n;
+    dx[l] = real ? fan.dx[i + l] : 1.0f;
+    dy[l] = real ? fan.dy[i + l] : 0.0f;
+    dz[l] = real ? fan.dz[i + l] : 0.0f;
+    max_t[l] = real ? fan.max_t[i + l] : 0.0f;
   }
-  for (int i = 0; i < s.num_spheres; i += W) {
-    const F t = ray_sphere<F, B>(ray, F::load_unaligned(s.sphere_cx + i), F::load_unaligned(s.sphere_cy + i),
-                                 F::load_unaligned(s.sphere_cz + i), F::load_unaligned(s.sphere_r + i));
-    if (xsimd::any(t < F(best.t))) scan(t, s.sphere_id(i));
+  RayFan tail = fan;
+  tail.dx = dx, tail.dy = dy, tail.dz = dz, tail.max_t = max_t, tail.count = W;
+  const Nearest<F> best = cast_block<F>(shapes, tail, 0);
+  best.t.store_aligned(lane_t);
+  best.id.store_aligned(lane_id);
+  for (int l = 0; l < n; ++l) {
+    t[i + l] = lane_t[l];
+    id[i + l] = int32_t(lane_id[l]);
   }
-  if (best.t >= kNoHitT) best.id = -1;
-  return best;
 }
 
 }  // namespace hns::batch

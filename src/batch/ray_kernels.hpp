@@ -1,48 +1,53 @@
-// Ray casting against one env's shapes, vectorised across shapes with xsimd, plus the scalar reference the
-// tests compare it to. These kernels drive line of sight and lidar (SPEC.md §4.1, §4.2, §14.6, §14.7).
+// Ray casting against one env's shapes for line of sight and lidar (SPEC.md §4.1, §4.2, §14.6, §14.7).
 //
-// Shapes are float structure-of-arrays, each array padded to a multiple of kRayWidth. Padding shapes sit
-// far below the floor (z = kParkedZ) and are never hit by a ray of bounded length.
+// The kernel casts a *fan*: rays that share one origin (an agent's lines of sight to its targets, or its 30
+// lidar rays). It is vectorised across rays with xsimd: each shape's own quantities (its frame, the origin
+// in that frame) are computed once as scalars and broadcast, and every lane keeps its nearest hit with a
+// branch-free select. A scalar reference does the same arithmetic one ray at a time; the two agree bit for
+// bit.
+//
+// Shapes are float structure-of-arrays. Slots [0, live) of each kind hold this episode's shapes; later slots
+// are padding the kernel never reads (the batch parks them far below the floor).
 #pragma once
 
 #include <cstdint>
 
 namespace hns::batch {
 
-// Lanes of the vector kernels (floats per register of the build's instruction set).
+// Lanes of the vector kernel (floats per register of the build's instruction set).
 int ray_simd_width();
-inline constexpr int kRayWidth = 8;  // arrays are padded to a multiple of this (>= any SIMD width used)
-inline constexpr float kParkedZ = -1.0e4f;
-inline constexpr float kNoHitT = 1.0e30f;
+inline constexpr float kParkedZ = -1.0e4f;  // m, z of a padding slot's centre
+inline constexpr float kNoHitT = 1.0e30f;   // distance reported for a ray that hits nothing
 
-// Read-only view of one env's shapes. Shape ids: boxes [0, num_boxes), wedges next, spheres last.
-// Boxes hold walls and movable boxes alike; yaw as cos/sin.
+// Read-only view of one env's shapes. Shape ids: box slots [0, num_boxes), wedge slots next, sphere slots
+// last. Boxes hold walls and movable boxes alike; yaw as cos/sin; ramps are wedges of the fixed ramp size.
 struct ShapesView {
-  const float *box_cx, *box_cy, *box_cz, *box_hx, *box_hy, *box_hz, *box_c, *box_s;
-  int num_boxes;  // a multiple of kRayWidth
-  const float *wedge_cx, *wedge_cy, *wedge_cz, *wedge_c, *wedge_s;
-  int num_wedges;  // a multiple of kRayWidth
-  const float *sphere_cx, *sphere_cy, *sphere_cz, *sphere_r;
-  int num_spheres;  // a multiple of kRayWidth
+  const float *box_cx, *box_cy, *box_cz;        // centre, m
+  const float *box_hx, *box_hy, *box_hz;        // half extents, m
+  const float *box_c, *box_s;                   // cos, sin of yaw
+  int num_boxes, live_boxes;                    // slots, and slots [0, live) in use
+  const float *wedge_cx, *wedge_cy, *wedge_cz;  // bounding-box centre, m
+  const float *wedge_c, *wedge_s;               // cos, sin of yaw
+  int num_wedges, live_wedges;
+  const float *sphere_cx, *sphere_cy, *sphere_cz, *sphere_r;  // centre and radius, m
+  int num_spheres, live_spheres;
 
   int wedge_id(int i) const { return num_boxes + i; }
   int sphere_id(int i) const { return num_boxes + num_wedges + i; }
 };
 
-struct Ray {
-  float ox, oy, oz;  // origin, m
-  float dx, dy, dz;  // unit direction
-  float max_t;       // hits beyond this distance are ignored, m
-  int skip_id;       // a shape the ray ignores (the caster's own body), -1 for none
+// `count` rays from one origin: per ray a unit direction and a length (hits farther away are ignored).
+struct RayFan {
+  float ox, oy, oz;           // origin, m
+  const float *dx, *dy, *dz;  // unit directions (count each)
+  const float* max_t;         // lengths, m (count)
+  int count;                  // any count >= 0; no padding needed
+  int skip_id;                // a shape every ray ignores (the caster's own body), -1 for none
 };
 
-struct RayHit {
-  float t;  // kNoHitT if nothing within max_t
-  int id;   // -1 if nothing
-};
-
-// First shape hit along the ray (lowest id on exact ties). Both give bit-identical results.
-RayHit first_hit(const ShapesView& shapes, const Ray& ray);
-RayHit first_hit_scalar(const ShapesView& shapes, const Ray& ray);
+// Per ray of the fan, the first shape hit: t[i] its distance (kNoHitT if none within max_t) and id[i] its id
+// (-1 if none); on exact ties the lower id. t and id hold fan.count entries. Both give bit-identical results.
+void first_hits(const ShapesView& shapes, const RayFan& fan, float* t, int32_t* id);
+void first_hits_scalar(const ShapesView& shapes, const RayFan& fan, float* t, int32_t* id);
 
 }  // namespace hns::batch

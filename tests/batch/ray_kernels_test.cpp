@@ -1,5 +1,6 @@
-// The vectorised ray kernel equals its scalar reference bit for bit, and agrees with the double-precision
-// geometry of the physics layer.
+// The fan kernel (vectorised across rays) equals its scalar reference bit for bit for every fan length,
+// never reads a padding slot, skips the caster, and agrees with the double-precision geometry of the
+// physics layer.
 #include "batch/ray_kernels.hpp"
 
 #include <gtest/gtest.h>
@@ -14,28 +15,33 @@
 namespace hns::batch {
 namespace {
 
-// Random shapes in a 6 x 6 m arena: `boxes`, `wedges` and `spheres` real ones, the rest of each padded
-// array parked below the floor.
+// Random shapes in a 6 x 6 m arena: `boxes`, `wedges` and `spheres` live ones followed by `pad` padding
+// slots of each kind. Every third box is axis-aligned, as walls are. Padding slots hold `padding_box`
+// shapes: parked below the floor, or a giant shape over the whole arena that any ray reading it would hit.
 struct RandomShapes {
   std::vector<float> bcx, bcy, bcz, bhx, bhy, bhz, bc, bs, wcx, wcy, wcz, wc, ws, scx, scy, scz, sr;
-  int nb, nw, ns;
-  RandomShapes(physics::Rng& rng, int boxes, int wedges, int spheres) {
-    auto pad = [](int n) { return std::max(kRayWidth, (n + kRayWidth - 1) / kRayWidth * kRayWidth); };
-    nb = pad(boxes), nw = pad(wedges), ns = pad(spheres);
-    for (auto* v : {&bcx, &bcy, &bhx, &bhy, &bhz, &bs}) v->assign(nb, 0.0f);
-    bcz.assign(nb, kParkedZ);
+  int nb, nw, ns, live_b, live_w, live_s;
+  RandomShapes(physics::Rng& rng, int boxes, int wedges, int spheres, int pad = 3, bool giant_padding = false)
+      : nb(boxes + pad), nw(wedges + pad), ns(spheres + pad), live_b(boxes), live_w(wedges), live_s(spheres) {
+    const float pz = giant_padding ? 0.0f : kParkedZ, ph = giant_padding ? 100.0f : 0.01f;
+    for (auto* v : {&bcx, &bcy}) v->assign(nb, giant_padding ? 3.0f : 0.0f);
+    bs.assign(nb, 0.0f);
+    for (auto* v : {&bhx, &bhy, &bhz}) v->assign(nb, ph);
+    bcz.assign(nb, pz);
     bc.assign(nb, 1.0f);
-    for (auto* v : {&wcx, &wcy, &ws}) v->assign(nw, 0.0f);
-    wcz.assign(nw, kParkedZ);
+    for (auto* v : {&wcx, &wcy}) v->assign(nw, 3.0f);
+    ws.assign(nw, 0.0f);
+    wcz.assign(nw, giant_padding ? 0.25f : kParkedZ);
     wc.assign(nw, 1.0f);
-    for (auto* v : {&scx, &scy}) v->assign(ns, 0.0f);
-    scz.assign(ns, kParkedZ);
-    sr.assign(ns, 0.01f);
+    for (auto* v : {&scx, &scy}) v->assign(ns, 3.0f);
+    scz.assign(ns, pz);
+    sr.assign(ns, ph);
     auto u = [&](double lo, double hi) { return float(rng.uniform(lo, hi)); };
     for (int i = 0; i < boxes; ++i) {
-      const float yaw = u(-3.2, 3.2);
+      const float yaw = i % 3 == 0 ? 0.0f : u(-3.2, 3.2);
       bcx[i] = u(0, 6), bcy[i] = u(0, 6), bhz[i] = u(0.1, 1.0), bcz[i] = bhz[i];
-      bhx[i] = u(0.05, 0.9), bhy[i] = u(0.05, 0.9), bc[i] = std::cos(yaw), bs[i] = std::sin(yaw);
+      bhx[i] = u(0.05, 0.9), bhy[i] = u(0.05, 0.9);
+      bc[i] = i % 3 == 0 ? 1.0f : std::cos(yaw), bs[i] = i % 3 == 0 ? 0.0f : std::sin(yaw);
     }
     for (int i = 0; i < wedges; ++i) {
       const float yaw = u(-3.2, 3.2);
@@ -45,45 +51,148 @@ struct RandomShapes {
       scx[i] = u(0, 6), scy[i] = u(0, 6), scz[i] = u(0.15, 0.7), sr[i] = 0.15f;
   }
   ShapesView view() const {
-    return ShapesView{bcx.data(), bcy.data(), bcz.data(), bhx.data(), bhy.data(), bhz.data(), bc.data(),
-                      bs.data(),  nb,         wcx.data(), wcy.data(), wcz.data(), wc.data(),  ws.data(),
-                      nw,         scx.data(), scy.data(), scz.data(), sr.data(),  ns};
+    ShapesView v;
+    v.box_cx = bcx.data(), v.box_cy = bcy.data(), v.box_cz = bcz.data();
+    v.box_hx = bhx.data(), v.box_hy = bhy.data(), v.box_hz = bhz.data();
+    v.box_c = bc.data(), v.box_s = bs.data(), v.num_boxes = nb, v.live_boxes = live_b;
+    v.wedge_cx = wcx.data(), v.wedge_cy = wcy.data(), v.wedge_cz = wcz.data();
+    v.wedge_c = wc.data(), v.wedge_s = ws.data(), v.num_wedges = nw, v.live_wedges = live_w;
+    v.sphere_cx = scx.data(), v.sphere_cy = scy.data(), v.sphere_cz = scz.data(), v.sphere_r = sr.data();
+    v.num_spheres = ns, v.live_spheres = live_s;
+    return v;
   }
 };
 
-Ray random_ray(physics::Rng& rng, const ShapesView& v) {
-  const double az = rng.uniform(-3.2, 3.2), el = rng.uniform(-0.3, 0.3);
-  return Ray{
-      float(rng.uniform(0, 6)),           float(rng.uniform(0, 6)),
-      float(rng.uniform(0.1, 0.8)),       float(std::cos(el) * std::cos(az)),
-      float(std::cos(el) * std::sin(az)), float(std::sin(el)),
-      float(rng.uniform(0.5, 9.0)),       rng.uniform_int(-1, v.num_boxes + v.num_wedges + v.num_spheres)};
-}
+// A fan of `count` rays from a random origin: random unit directions, a few of them exactly horizontal or
+// along an axis (as lidar rays and walls meet), and random lengths (some zero).
+struct RandomFan {
+  std::vector<float> dx, dy, dz, max_t;
+  RayFan fan{};
+  RandomFan(physics::Rng& rng, int count, int skip_id) : dx(count), dy(count), dz(count), max_t(count) {
+    for (int i = 0; i < count; ++i) {
+      const double az = rng.uniform(-3.2, 3.2), el = rng.uniform(-0.3, 0.3);
+      dx[i] = float(std::cos(el) * std::cos(az)), dy[i] = float(std::cos(el) * std::sin(az));
+      dz[i] = float(std::sin(el));
+      switch (rng.uniform_int(0, 8)) {
+        case 0:
+          dx[i] = float(std::cos(az)), dy[i] = float(std::sin(az)), dz[i] = 0.0f;
+          break;
+        case 1:
+          dx[i] = 0.0f, dy[i] = az > 0 ? 1.0f : -1.0f, dz[i] = 0.0f;
+          break;
+        case 2:
+          dx[i] = az > 0 ? 1.0f : -1.0f, dy[i] = 0.0f, dz[i] = 0.0f;
+          break;
+        default:
+          break;
+      }
+      max_t[i] = rng.uniform_int(0, 20) == 0 ? 0.0f : float(rng.uniform(0.5, 9.0));
+    }
+    fan = RayFan{float(rng.uniform(0, 6)),
+                 float(rng.uniform(0, 6)),
+                 float(rng.uniform(0.1, 0.8)),
+                 dx.data(),
+                 dy.data(),
+                 dz.data(),
+                 max_t.data(),
+                 count,
+                 skip_id};
+  }
+};
 
-// Every count of real shapes from 0 to 2·width+1, so every tail of a SIMD block is exercised.
-TEST(RayKernels, VectorEqualsScalarForEveryTailLength) {
+struct Hits {
+  std::vector<float> t;
+  std::vector<int32_t> id;
+  explicit Hits(int n) : t(size_t(n) + 1, -7.0f), id(size_t(n) + 1, -7) {}
+};
+
+// Every fan length from 0 to 3·width+1, so every tail of a SIMD block (and none) is exercised, against
+// scenes of several sizes; the entry past the fan's end must stay untouched.
+TEST(RayKernels, VectorEqualsScalarForEveryFanLength) {
   physics::Rng rng(3, 0, 0);
-  const int max_count = 2 * ray_simd_width() + 1;
-  int hits = 0;
-  for (int count = 0; count <= max_count; ++count) {
-    const RandomShapes shapes(rng, count, count % 4, (count * 3) % (max_count + 1));
+  const int max_count = 3 * ray_simd_width() + 1;
+  int hits = 0, rays = 0;
+  for (int scene = 0; scene < 12; ++scene) {
+    const RandomShapes shapes(rng, scene, scene % 4, (scene * 5) % 9, scene % 3);
     const ShapesView v = shapes.view();
-    for (int k = 0; k < 400; ++k) {
-      const Ray ray = random_ray(rng, v);
-      const RayHit a = first_hit(v, ray), b = first_hit_scalar(v, ray);
-      ASSERT_EQ(a.id, b.id) << "count " << count << " ray " << k;
-      ASSERT_EQ(std::memcmp(&a.t, &b.t, sizeof(float)), 0) << "count " << count << " ray " << k;
-      hits += a.id >= 0;
+    for (int count = 0; count <= max_count; ++count) {
+      for (int rep = 0; rep < 8; ++rep) {
+        const RandomFan f(rng, count, rng.uniform_int(-1, v.num_boxes + v.num_wedges + v.num_spheres));
+        Hits a(count), b(count);
+        first_hits(v, f.fan, a.t.data(), a.id.data());
+        first_hits_scalar(v, f.fan, b.t.data(), b.id.data());
+        for (int i = 0; i < count; ++i) {
+          ASSERT_EQ(a.id[i], b.id[i]) << "scene " << scene << " count " << count << " ray " << i;
+          ASSERT_EQ(std::memcmp(&a.t[i], &b.t[i], sizeof(float)), 0)
+              << "scene " << scene << " count " << count << " ray " << i << ": " << a.t[i] << " vs "
+              << b.t[i];
+          ASSERT_EQ(a.id[i] < 0, a.t[i] == kNoHitT);
+          hits += a.id[i] >= 0;
+        }
+        ASSERT_EQ(a.id[count], -7) << "wrote past the fan";
+        ASSERT_EQ(a.t[count], -7.0f) << "wrote past the fan";
+        rays += count;
+      }
     }
   }
-  EXPECT_GT(hits, 1000) << "the random rays must actually hit things";
+  EXPECT_GT(hits, rays / 5) << "the random rays must actually hit things";
+}
+
+// Slots past the live counts are never read: a giant shape there changes nothing.
+TEST(RayKernels, PaddingSlotsAreNeverRead) {
+  physics::Rng rng_a(5, 0, 0), rng_b(5, 0, 0), rays(6, 0, 0);
+  const RandomShapes parked(rng_a, 7, 2, 4, 5, false), giant(rng_b, 7, 2, 4, 5, true);
+  int hits = 0;
+  for (int k = 0; k < 200; ++k) {
+    const RandomFan f(rays, 30, -1);
+    Hits a(30), b(30);
+    first_hits(parked.view(), f.fan, a.t.data(), a.id.data());
+    first_hits(giant.view(), f.fan, b.t.data(), b.id.data());
+    for (int i = 0; i < 30; ++i) {
+      ASSERT_EQ(a.id[i], b.id[i]) << "fan " << k << " ray " << i;
+      ASSERT_EQ(a.t[i], b.t[i]) << "fan " << k << " ray " << i;
+      hits += a.id[i] >= 0;
+    }
+  }
+  EXPECT_GT(hits, 1000);
+  // The check above can fail: with the padding counted as live, most rays start inside a giant shape.
+  ShapesView all = giant.view();
+  all.live_boxes = all.num_boxes;
+  int changed = 0;
+  for (int k = 0; k < 20; ++k) {
+    const RandomFan f(rays, 8, -1);
+    Hits a(8), b(8);
+    first_hits(giant.view(), f.fan, a.t.data(), a.id.data());
+    first_hits(all, f.fan, b.t.data(), b.id.data());
+    for (int i = 0; i < 8; ++i) changed += a.id[i] != b.id[i];
+  }
+  EXPECT_GT(changed, 80);
+}
+
+// A fan from inside a sphere hits it at 0 unless that sphere is the caster, which every ray then ignores.
+TEST(RayKernels, CasterIsSkipped) {
+  physics::Rng rng(7, 0, 0);
+  RandomShapes s(rng, 0, 0, 2, 0);
+  s.scx = {1.0f, 4.0f}, s.scy = {1.0f, 1.0f}, s.scz = {0.5f, 0.5f}, s.sr = {0.15f, 0.15f};
+  const ShapesView v = s.view();
+  const float dx[2] = {1.0f, -1.0f}, dy[2] = {0.0f, 0.0f}, dz[2] = {0.0f, 0.0f}, len[2] = {6.0f, 6.0f};
+  float t[2];
+  int32_t id[2];
+  first_hits(v, RayFan{1.0f, 1.0f, 0.5f, dx, dy, dz, len, 2, -1}, t, id);
+  EXPECT_EQ(id[0], v.sphere_id(0));
+  EXPECT_EQ(t[0], 0.0f);
+  first_hits(v, RayFan{1.0f, 1.0f, 0.5f, dx, dy, dz, len, 2, v.sphere_id(0)}, t, id);
+  EXPECT_EQ(id[0], v.sphere_id(1)) << "the ray along +x reaches the other agent";
+  EXPECT_NEAR(t[0], 3.0f - 0.15f, 1e-5f);
+  EXPECT_EQ(id[1], -1) << "nothing along -x";
+  EXPECT_EQ(t[1], kNoHitT);
 }
 
 // Against the physics layer's double-precision reference: same first shape and distance within 1e-4 m,
 // except for near-ties where float rounding may pick the other of two shapes.
 TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
   physics::Rng rng(4, 0, 0);
-  int compared = 0, disagreed = 0;
+  int compared = 0, disagreed = 0, hits = 0;
   for (int scene = 0; scene < 50; ++scene) {
     const RandomShapes s(rng, 12, 2, 5);
     const ShapesView v = s.view();
@@ -95,27 +204,34 @@ TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
     for (int i = 0; i < 2; ++i) wedges.push_back({s.wcx[i], s.wcy[i], s.wcz[i], s.wc[i], s.ws[i]});
     for (int i = 0; i < 5; ++i) spheres.push_back({s.scx[i], s.scy[i], s.scz[i], s.sr[i]});
     const physics::Occluders occ{{}, boxes, wedges, spheres};
-    for (int k = 0; k < 200; ++k) {
-      Ray ray = random_ray(rng, v);
+    for (int k = 0; k < 10; ++k) {
       const int skip_sphere = rng.uniform_int(-1, 5);
-      ray.skip_id = skip_sphere >= 0 ? v.sphere_id(skip_sphere) : -1;
-      const RayHit a = first_hit(v, ray);
-      const double o[3] = {ray.ox, ray.oy, ray.oz}, d[3] = {ray.dx, ray.dy, ray.dz};
-      const physics::RayHit ref = physics::cast_ray(occ, o, d, ray.max_t, skip_sphere);
-      int ref_id = -1;
-      if (ref.kind == physics::HitKind::kBox) ref_id = ref.index;
-      if (ref.kind == physics::HitKind::kRamp) ref_id = v.wedge_id(ref.index);
-      if (ref.kind == physics::HitKind::kAgent) ref_id = v.sphere_id(ref.index);
-      ++compared;
-      if (a.id != ref_id) {
-        ++disagreed;
-        continue;
-      }
-      if (a.id >= 0) {
-        EXPECT_NEAR(a.t, ref.t, 1e-4);
+      const RandomFan f(rng, 20, skip_sphere >= 0 ? v.sphere_id(skip_sphere) : -1);
+      Hits a(20);
+      first_hits(v, f.fan, a.t.data(), a.id.data());
+      for (int i = 0; i < 20; ++i) {
+        // The reference keeps hits strictly nearer than max_t, the kernel up to max_t: they differ only for
+        // a zero-length ray from inside a shape, which the batch never casts.
+        if (f.max_t[i] == 0.0f) continue;
+        const double o[3] = {f.fan.ox, f.fan.oy, f.fan.oz}, d[3] = {f.dx[i], f.dy[i], f.dz[i]};
+        const physics::RayHit ref = physics::cast_ray(occ, o, d, f.max_t[i], skip_sphere);
+        int ref_id = -1;
+        if (ref.kind == physics::HitKind::kBox) ref_id = ref.index;
+        if (ref.kind == physics::HitKind::kRamp) ref_id = v.wedge_id(ref.index);
+        if (ref.kind == physics::HitKind::kAgent) ref_id = v.sphere_id(ref.index);
+        ++compared;
+        if (a.id[i] != ref_id) {
+          ++disagreed;
+          continue;
+        }
+        if (a.id[i] >= 0) {
+          ++hits;
+          EXPECT_NEAR(a.t[i], ref.t, 1e-4);
+        }
       }
     }
   }
+  EXPECT_GT(hits, compared / 5);
   EXPECT_LE(disagreed, compared / 500) << disagreed << " of " << compared << " rays hit another shape";
 }
 
