@@ -63,7 +63,7 @@ BENCHMARK(BM_RayFan<hns::batch::first_hits>)->Name("BM_RayFan/simd");
 BENCHMARK(BM_RayFan<hns::batch::first_hits_scalar>)->Name("BM_RayFan/scalar");
 
 // Whole batch step of 64 envs with random actions; items/s = env-steps/s. Counters give each phase's rate
-// in env-steps per second of thread time (vision+lidar, observation packing, physics).
+// in env-steps per second of thread time (physics, mirror, vision+lidar, observation packing).
 void batch_step(benchmark::State& state, const char* scene) {
   BatchConfig config;
   config.world = hns::physics::world_preset(scene);
@@ -87,6 +87,7 @@ void batch_step(benchmark::State& state, const char* scene) {
   state.SetItemsProcessed(int64_t(env_steps));
   const hns::batch::PhaseTimes& ph = sim.phase_times();
   state.counters["physics_env_steps_per_s"] = env_steps / ph.physics;
+  state.counters["mirror_env_steps_per_s"] = env_steps / ph.mirror;
   state.counters["vision_lidar_env_steps_per_s"] = env_steps / ph.perception;
   state.counters["observations_env_steps_per_s"] = env_steps / ph.observations;
 }

@@ -89,16 +89,16 @@ int run_bench(const BenchOptions& opt) {
   }
   const double wall = std::chrono::duration<double>(Clock::now() - start).count();
   const hns::batch::PhaseTimes& ph = sim.phase_times();
-  const double thread_s = ph.physics + ph.perception + ph.observations + ph.rewards;
+  const double thread_s = ph.total();
   const double env_steps = double(opt.envs) * opt.steps;
   auto share = [&](double x) { return thread_s > 0 ? 100 * x / thread_s : 0.0; };
   std::printf("  env-steps/s    %12.0f\n  agent-steps/s  %12.0f\n", env_steps / wall, agent_steps / wall);
   std::printf("  per env-step   %12.2f us of thread time, %lld episodes finished\n",
               1e6 * thread_s / env_steps, static_cast<long long>(episodes));
   std::printf(
-      "  phases (share of thread time): physics %.1f%%, vision+lidar %.1f%%, observations %.1f%%, "
-      "rewards/resets %.1f%%\n",
-      share(ph.physics), share(ph.perception), share(ph.observations), share(ph.rewards));
+      "  phases (share of thread time): physics %.1f%%, mirror %.1f%%, vision+lidar %.1f%%, "
+      "observations %.1f%%, rewards/resets %.1f%%\n",
+      share(ph.physics), share(ph.mirror), share(ph.perception), share(ph.observations), share(ph.rewards));
   if (sim.unstable_resets() > 0) {
     std::printf("  warning: %lld episode(s) were reset after numerical instability\n",
                 static_cast<long long>(sim.unstable_resets()));
@@ -118,6 +118,7 @@ int run_bench(const BenchOptions& opt) {
     j["episodes_finished"] = episodes;
     j["unstable_resets"] = sim.unstable_resets();
     j["phases"] = {{"physics_s", ph.physics},
+                   {"mirror_s", ph.mirror},
                    {"vision_lidar_s", ph.perception},
                    {"observations_s", ph.observations},
                    {"rewards_resets_s", ph.rewards}};

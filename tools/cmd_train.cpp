@@ -279,15 +279,16 @@ int run_train(const TrainOptions& opt) {
   if (totals.seconds > 0) {
     const double w = 100.0 / totals.seconds;
     const batch::PhaseTimes& ph = trainer.sim().phase_times();
-    const double sim_thread = ph.physics + ph.perception + ph.observations + ph.rewards;
+    const double sim_thread = ph.total();
     const double v = sim_thread > 0 ? 100.0 / sim_thread : 0.0;
     std::printf(
-        "time split: simulate %.1f%% (of its thread time: physics %.0f%%, vision+lidar %.0f%%, "
-        "observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, forward+backward %.1f%%, "
+        "time split: simulate %.1f%% (of its thread time: physics %.0f%%, mirror %.0f%%, "
+        "vision+lidar %.0f%%, observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, "
+        "forward+backward %.1f%%, "
         "optimizer %.1f%%, everything else %.1f%% (observation copies %.1f%%, targets and gathers %.1f%%, "
         "other %.1f%%)\n",
-        totals.t_simulate * w, ph.physics * v, ph.perception * v, ph.observations * v, ph.rewards * v,
-        totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
+        totals.t_simulate * w, ph.physics * v, ph.mirror * v, ph.perception * v, ph.observations * v,
+        ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
         (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
         totals.t_targets * w, totals.t_other * w);
   }

@@ -57,7 +57,7 @@ struct BatchSim::EnvScratch {
   bool finished = false;  // an episode ended during the last step
   EpisodeStats stats;
   int64_t unstable_resets = 0;
-  int64_t ns_physics = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
+  int64_t ns_physics = 0, ns_mirror = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
   std::vector<TraceEvent> trace;  // filled only while tracing
 };
 
@@ -177,7 +177,10 @@ void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int e
       end_episode_env(e, true);
       phase_done("rewards+resets", sc.ns_rewards);
     } else {
-      refresh_env(e);
+      mirror_env(e);
+      build_shapes(e);
+      phase_done("mirror", sc.ns_mirror);
+      perceive_env(e);
       phase_done("vision+lidar", sc.ns_perception);
       rewards_env(e);
       if (state_.done[e] != 0) end_episode_env(e, false);
@@ -207,10 +210,11 @@ void BatchSim::collect_finished() {
     EnvScratch& sc = scratch_[e];
     if (sc.finished) finished_.push_back(sc.stats);
     phase_times_.physics += sc.ns_physics * 1e-9;
+    phase_times_.mirror += sc.ns_mirror * 1e-9;
     phase_times_.perception += sc.ns_perception * 1e-9;
     phase_times_.observations += sc.ns_observations * 1e-9;
     phase_times_.rewards += sc.ns_rewards * 1e-9;
-    sc.ns_physics = sc.ns_perception = sc.ns_observations = sc.ns_rewards = 0;
+    sc.ns_physics = sc.ns_mirror = sc.ns_perception = sc.ns_observations = sc.ns_rewards = 0;
   }
 }
 

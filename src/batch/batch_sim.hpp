@@ -165,14 +165,16 @@ struct EpisodeStats {
 // Seconds of thread time spent per phase since the last reset_timers(), summed over envs.
 struct PhaseTimes {
   double physics = 0;       // World::step (grab, lock, substeps)
-  double perception = 0;    // mirror, shapes, vision, lidar
+  double mirror = 0;        // bodies read back from ODE into the SoA fields, ray-cast shapes
+  double perception = 0;    // vision (cone + line of sight) and lidar
   double observations = 0;  // observation tensors
   double rewards = 0;       // rewards, statistics, auto-resets
+  double total() const { return physics + mirror + perception + observations + rewards; }
 };
 
 // One phase of one env's step, for profiles (Chrome trace viewer). Times in ns since the BatchSim was built.
 struct TraceEvent {
-  const char* phase;  // "physics", "vision+lidar", "rewards+resets", "observations"
+  const char* phase;  // "physics", "mirror", "vision+lidar", "rewards+resets", "observations"
   int64_t begin_ns;
   int64_t end_ns;
   int thread;  // TBB thread index within the arena

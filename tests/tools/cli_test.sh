@@ -32,10 +32,18 @@ expect_fail 2 "hiders" bench --hiders 0 --seekers 0
 expect_fail 2 "" bench --no-such-flag
 expect_fail 2 "" frobnicate
 
+# has_fields FILE NAME...: the JSON file has every named key.
+has_fields() {
+  local file="$1"
+  shift
+  for f in "$@"; do grep -q "\"$f\"" "$file" || return 1; done
+}
+
 # A short real run writes the JSON figures, and no temporary file is left behind.
 if "$hns" bench --scene full --envs 2 --steps 20 --json "$tmp/out.json" >"$tmp/log" 2>&1 &&
    grep -q '"env_steps_per_s"' "$tmp/out.json" && grep -q '"agent_steps_per_s"' "$tmp/out.json" &&
-   grep -q '"phases"' "$tmp/out.json" && grep -q '"scene": "full"' "$tmp/out.json" &&
+   has_fields "$tmp/out.json" phases physics_s mirror_s vision_lidar_s observations_s rewards_resets_s &&
+   grep -q '"scene": "full"' "$tmp/out.json" &&
    [ ! -e "$tmp/out.json.tmp" ] && grep -q "env-steps/s" "$tmp/log"; then
   passed=$((passed + 1))
 else
@@ -43,11 +51,6 @@ else
   echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
 fi
 # The network benchmark writes its documented fields.
-has_fields() {
-  local file="$1"
-  shift
-  for f in "$@"; do grep -q "\"$f\"" "$file" || return 1; done
-}
 if "$hns" bench --nn small --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
    has_fields "$tmp/nn.json" model threads params infer_agent_steps_per_s train_agent_steps_per_s \
      infer_gflops train_gflops gemm_gflops; then
@@ -57,9 +60,9 @@ else
   echo "FAIL: bench --nn run"; cat "$tmp/log"
 fi
 expect_fail 2 "nn" bench --nn huge
-# A profiled run writes a Chrome trace with one event per env, step and phase.
+# A profiled run writes a Chrome trace with one event per env, step and phase (5 phases).
 if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
-   grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 40 ]; then
+   grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 50 ]; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
