@@ -62,6 +62,46 @@ void BM_RayFan(benchmark::State& state) {
 BENCHMARK(BM_RayFan<hns::batch::first_hits>)->Name("BM_RayFan/simd");
 BENCHMARK(BM_RayFan<hns::batch::first_hits_scalar>)->Name("BM_RayFan/scalar");
 
+// One kernel over a batch of 64 full-scene envs (paper counts, drawn per episode) after 30 random steps:
+// every env's vision, lidar or observation packing recomputed from the SoA mirror as step() runs it.
+// items/s = agent-steps/s (one agent's vision, lidar fan or observations).
+void per_env_kernel(benchmark::State& state, void (BatchSim::*kernel)(int)) {
+  BatchConfig config;
+  config.world = hns::physics::WorldConfig::full();
+  config.num_envs = 64;
+  BatchSim sim(config);
+  std::vector<AgentAction> acts(size_t(config.num_envs) * sim.layout().max_agents);
+  Rng rng(4, 5, 6);
+  for (int k = 0; k < 30; ++k) {
+    for (AgentAction& a : acts) {
+      a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                      uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                      uint8_t(rng.uniform_int(0, 2))};
+    }
+    sim.step(acts);
+  }
+  int64_t agents = 0;
+  for (int e = 0; e < config.num_envs; ++e) agents += sim.world(e).num_agents();
+  for (auto _ : state) {
+    for (int e = 0; e < config.num_envs; ++e) (sim.*kernel)(e);
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(state.iterations() * agents);
+  state.counters["agents_per_env"] = double(agents) / config.num_envs;
+}
+void BM_Vision(benchmark::State& state) {
+  per_env_kernel(state, &BatchSim::compute_vision);
+}
+void BM_Lidar(benchmark::State& state) {
+  per_env_kernel(state, &BatchSim::compute_lidar);
+}
+void BM_ObservationPacking(benchmark::State& state) {
+  per_env_kernel(state, &BatchSim::compute_observations);
+}
+BENCHMARK(BM_Vision);
+BENCHMARK(BM_Lidar);
+BENCHMARK(BM_ObservationPacking);
+
 // Whole batch step of 64 envs with random actions; items/s = env-steps/s. Counters give each phase's rate
 // in env-steps per second of thread time (physics, mirror, vision+lidar, observation packing).
 void batch_step(benchmark::State& state, const char* scene) {

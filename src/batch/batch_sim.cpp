@@ -180,7 +180,8 @@ void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int e
       mirror_env(e);
       build_shapes(e);
       phase_done("mirror", sc.ns_mirror);
-      perceive_env(e);
+      vision_env(e);
+      lidar_env(e);
       phase_done("vision+lidar", sc.ns_perception);
       rewards_env(e);
       if (state_.done[e] != 0) end_episode_env(e, false);
@@ -274,7 +275,8 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
 void BatchSim::refresh_env(int env) {
   mirror_env(env);
   build_shapes(env);
-  perceive_env(env);
+  vision_env(env);
+  lidar_env(env);
 }
 
 namespace {
@@ -405,9 +407,8 @@ ShapesView BatchSim::shapes(int env) const {
 
 // Vision (SPEC §4.1): a target is seen when it lies in the viewer's cone and the first shape on the segment
 // from the viewer's centre to the target's centre is the target itself. Each viewer's lines of sight to the
-// targets in its cone form one ray fan. Lidar (§4.2, §14.6): 30 world-fixed horizontal rays per agent, the
-// first hit within 6 m, else 6.
-void BatchSim::perceive_env(int env) {
+// targets in its cone form one ray fan.
+void BatchSim::vision_env(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
   const ShapesView shapes = this->shapes(env);
@@ -422,11 +423,9 @@ void BatchSim::perceive_env(int env) {
   uint8_t* vis_agents = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
   uint8_t* vis_boxes = s.vis_boxes.data() + size_t(env) * L.max_agents * L.max_boxes;
   uint8_t* vis_ramps = s.vis_ramps.data() + size_t(env) * L.max_agents * L.max_ramps;
-  float* lidar = s.lidar.data() + size_t(env) * L.max_agents * Layout::kLidar;
   std::fill_n(vis_agents, L.max_agents * L.max_agents, 0);
   std::fill_n(vis_boxes, L.max_agents * L.max_boxes, 0);
   std::fill_n(vis_ramps, L.max_agents * L.max_ramps, 0);
-  std::fill_n(lidar, L.max_agents * Layout::kLidar, 0.0f);
 
   // One viewer's lines of sight: unit direction and length per target in the cone, the shape id that must
   // be hit first, and the visibility flag to set.
@@ -462,16 +461,6 @@ void BatchSim::perceive_env(int env) {
     }
     first_hits(shapes, RayFan{o[0], o[1], o[2], dx, dy, dz, len, n, shapes.sphere_id(a)}, t, hit);
     for (int k = 0; k < n; ++k) *flag[k] = hit[k] == want[k] ? 1 : 0;
-
-    float* out = lidar + a * Layout::kLidar;
-    int32_t lidar_hit[Layout::kLidar];
-    first_hits(shapes,
-               RayFan{o[0], o[1], o[2], kLidarFan.dx, kLidarFan.dy, kLidarFan.dz, kLidarFan.length,
-                      Layout::kLidar, shapes.sphere_id(a)},
-               out, lidar_hit);
-    for (int k = 0; k < Layout::kLidar; ++k) {
-      if (lidar_hit[k] < 0) out[k] = float(physics::kLidarRange);
-    }
   }
   // The world's grab and lock use this step's object visibility in the next step.
   physics::World& world = *worlds_[env];
@@ -481,6 +470,33 @@ void BatchSim::perceive_env(int env) {
     for (int b = 0; b < world.num_boxes(); ++b) object_vis[a * n_obj + b] = vis_boxes[a * L.max_boxes + b];
     for (int r = 0; r < world.num_ramps(); ++r) {
       object_vis[a * n_obj + world.num_boxes() + r] = vis_ramps[a * L.max_ramps + r];
+    }
+  }
+}
+
+// Lidar (SPEC §4.2, §14.6): per agent one fan of 30 world-fixed horizontal rays, the first hit within 6 m,
+// else 6. Empty agent slots read 0.
+void BatchSim::lidar_env(int env) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const ShapesView shapes = this->shapes(env);
+  const float* agent_pos = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
+  const uint8_t* agent_exists = s.agent_exists.data() + size_t(env) * L.max_agents;
+  float* lidar = s.lidar.data() + size_t(env) * L.max_agents * Layout::kLidar;
+  int32_t hit[Layout::kLidar];
+  for (int a = 0; a < L.max_agents; ++a) {
+    float* out = lidar + a * Layout::kLidar;
+    if (agent_exists[a] == 0) {
+      std::fill_n(out, Layout::kLidar, 0.0f);
+      continue;
+    }
+    const float* o = agent_pos + 3 * a;
+    first_hits(shapes,
+               RayFan{o[0], o[1], o[2], kLidarFan.dx, kLidarFan.dy, kLidarFan.dz, kLidarFan.length,
+                      Layout::kLidar, shapes.sphere_id(a)},
+               out, hit);
+    for (int k = 0; k < Layout::kLidar; ++k) {
+      if (hit[k] < 0) out[k] = float(physics::kLidarRange);
     }
   }
 }

@@ -217,6 +217,12 @@ class BatchSim {
   std::chrono::steady_clock::time_point trace_epoch() const { return epoch_; }
   // Env e's occluders as the ray kernel sees them (walls, boxes, ramps, agents).
   ShapesView shapes(int env) const;
+  // One phase of env e recomputed from its current SoA mirror, exactly as step() runs it after physics; the
+  // benchmarks time the kernels this way. Vision: cone + line of sight (vis_* and the world's object
+  // visibility); lidar; observations: the observation tensors and masks.
+  void compute_vision(int env) { vision_env(env); }
+  void compute_lidar(int env) { lidar_env(env); }
+  void compute_observations(int env) { observe_env(env); }
   // The underlying world of env e (read-only; tests and tools).
   const physics::World& world(int env) const { return *worlds_[env]; }
   // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step.
@@ -229,7 +235,8 @@ class BatchSim {
   void refresh_env(int env);                          // mirror, shapes, vision, lidar
   void mirror_env(int env);
   void build_shapes(int env);
-  void perceive_env(int env);
+  void vision_env(int env);
+  void lidar_env(int env);
   void rewards_env(int env);
   void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 task 'all' for agent 0
   void lockbox_retarget(int env);                    // nearest unlocked box and its distance

@@ -361,6 +361,41 @@ TEST(BatchDeterminism, SameSeedBitIdenticalForOneTwoAndFourThreads) {
   EXPECT_NE(one.at("agent_pos"), run(config, 45).at("agent_pos")) << "another seed, another run";
 }
 
+// The per-kernel benchmarks recompute one phase from the SoA mirror; that must be exactly the step's work:
+// recomputing vision, lidar and observations after a step changes no byte of the state.
+TEST(BatchKernels, RecomputingAPhaseReproducesTheStep) {
+  BatchConfig config;
+  config.world = physics::WorldConfig::full();
+  config.num_envs = 6;
+  BatchSim sim(config);
+  physics::Rng rng(9, 0, 0);
+  std::vector<AgentAction> acts(size_t(sim.num_envs()) * sim.layout().max_agents);
+  auto snapshot = [&] {
+    std::map<std::string, std::vector<uint8_t>> fields;
+    sim.state().for_each_field([&](const char* name, std::span<const uint8_t> bytes) {
+      fields[name].assign(bytes.begin(), bytes.end());
+    });
+    return fields;
+  };
+  int seen = 0;
+  for (int k = 0; k < 25; ++k) {
+    for (AgentAction& a : acts) a = AgentAction{uint8_t(rng.uniform_int(0, 11)), 5, 7, 0, 0};
+    sim.step(acts);
+    const auto after_step = snapshot();
+    for (int e = 0; e < sim.num_envs(); ++e) {
+      sim.compute_vision(e);
+      sim.compute_lidar(e);
+      sim.compute_observations(e);
+    }
+    const auto recomputed = snapshot();
+    for (const auto& [name, bytes] : after_step)
+      EXPECT_EQ(bytes, recomputed.at(name)) << name << ", step " << k;
+    const auto& masks = sim.state().mask_boxes;
+    for (size_t i = 0; i < masks.size(); ++i) seen += masks.data()[i];
+  }
+  EXPECT_GT(seen, 0) << "the agents must see some boxes for the check to mean something";
+}
+
 TEST(BatchConfigTest, BadConfigurationIsRejected) {
   BatchConfig config = test_config();
   config.num_envs = 0;
