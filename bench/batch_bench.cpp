@@ -1,5 +1,6 @@
-// The batch simulator: the ray fan kernel behind vision and lidar (rays/s, SIMD vs scalar) and the whole
-// batch step (env-steps/s at 1 and 2 threads) with its per-phase rates.
+// The batch simulator: the ray fan kernel behind vision and lidar (rays/s, SIMD vs scalar); vision, lidar and
+// observation packing over a batch (agent-steps/s); the whole batch step (env-steps/s at 1 and 2 threads)
+// with its per-phase rates.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -32,6 +33,15 @@ struct FullScene {
   }
   hns::batch::ShapesView shapes() const { return sim.shapes(0); }
 };
+
+// Uniformly random movement bins, grab and lock bits for every action slot.
+void random_actions(Rng& rng, std::vector<AgentAction>& acts) {
+  for (AgentAction& a : acts) {
+    a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                    uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                    uint8_t(rng.uniform_int(0, 2))};
+  }
+}
 
 // Every agent's 30-ray lidar fan (6 m, horizontal, its own body skipped), as the batch casts them; rays/s
 // as items/s.
@@ -73,11 +83,7 @@ void per_env_kernel(benchmark::State& state, void (BatchSim::*kernel)(int)) {
   std::vector<AgentAction> acts(size_t(config.num_envs) * sim.layout().max_agents);
   Rng rng(4, 5, 6);
   for (int k = 0; k < 30; ++k) {
-    for (AgentAction& a : acts) {
-      a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
-                      uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
-                      uint8_t(rng.uniform_int(0, 2))};
-    }
+    random_actions(rng, acts);
     sim.step(acts);
   }
   int64_t agents = 0;
@@ -115,11 +121,7 @@ void batch_step(benchmark::State& state, const char* scene) {
   sim.reset_timers();
   for (auto _ : state) {
     state.PauseTiming();
-    for (AgentAction& a : acts) {
-      a = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
-                      uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
-                      uint8_t(rng.uniform_int(0, 2))};
-    }
+    random_actions(rng, acts);
     state.ResumeTiming();
     sim.step(acts);
   }

@@ -315,6 +315,15 @@ TEST(BatchVision, MatchesScalarReferenceOnRandomEpisodes) {
   EXPECT_LE(disagreed, compared / 200) << disagreed << " of " << compared << " visibility pairs differ";
 }
 
+// Every field of the batch state, by name.
+std::map<std::string, std::vector<uint8_t>> snapshot(const BatchSim& sim) {
+  std::map<std::string, std::vector<uint8_t>> fields;
+  sim.state().for_each_field([&](const char* name, std::span<const uint8_t> bytes) {
+    fields[name].assign(bytes.begin(), bytes.end());
+  });
+  return fields;
+}
+
 // Every field of the state after `steps` seeded random steps.
 std::map<std::string, std::vector<uint8_t>> run(BatchConfig config, int steps, bool serial = false) {
   BatchSim sim(config);
@@ -332,11 +341,7 @@ std::map<std::string, std::vector<uint8_t>> run(BatchConfig config, int steps, b
       sim.step(acts);
     }
   }
-  std::map<std::string, std::vector<uint8_t>> fields;
-  sim.state().for_each_field([&](const char* name, std::span<const uint8_t> bytes) {
-    fields[name].assign(bytes.begin(), bytes.end());
-  });
-  return fields;
+  return snapshot(sim);
 }
 
 TEST(BatchDeterminism, SameSeedBitIdenticalForOneTwoAndFourThreads) {
@@ -370,24 +375,17 @@ TEST(BatchKernels, RecomputingAPhaseReproducesTheStep) {
   BatchSim sim(config);
   physics::Rng rng(9, 0, 0);
   std::vector<AgentAction> acts(size_t(sim.num_envs()) * sim.layout().max_agents);
-  auto snapshot = [&] {
-    std::map<std::string, std::vector<uint8_t>> fields;
-    sim.state().for_each_field([&](const char* name, std::span<const uint8_t> bytes) {
-      fields[name].assign(bytes.begin(), bytes.end());
-    });
-    return fields;
-  };
   int seen = 0;
   for (int k = 0; k < 25; ++k) {
     for (AgentAction& a : acts) a = AgentAction{uint8_t(rng.uniform_int(0, 11)), 5, 7, 0, 0};
     sim.step(acts);
-    const auto after_step = snapshot();
+    const auto after_step = snapshot(sim);
     for (int e = 0; e < sim.num_envs(); ++e) {
       sim.compute_vision(e);
       sim.compute_lidar(e);
       sim.compute_observations(e);
     }
-    const auto recomputed = snapshot();
+    const auto recomputed = snapshot(sim);
     for (const auto& [name, bytes] : after_step)
       EXPECT_EQ(bytes, recomputed.at(name)) << name << ", step " << k;
     const auto& masks = sim.state().mask_boxes;
