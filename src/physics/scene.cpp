@@ -64,7 +64,8 @@ class Grid {
 
 // ---------------------------------------------------------------------------------------------------------------
 // Walls → physical boxes (SPEC §1.3): from the centre of p1 to the centre of p2, shortened by half the wall
-// thickness at each end, centred on the cell-centre line. Pieces of one cell have no physical length.
+// thickness at each end, centred on the cell-centre line. (Pieces of one cell, which would have no physical
+// length, are never made.)
 void add_wall_box(const WallCells& w, std::vector<StaticBox>& boxes) {
   const int cells_x = std::abs(w.x2 - w.x1), cells_y = std::abs(w.y2 - w.y1);
   const double length = (cells_x + cells_y) * kCellSize - kWallThickness;
@@ -89,14 +90,19 @@ constexpr std::array<WallCells, 4> kOuterWalls = {{
     {0, kGridSize - 1, kGridSize - 1, kGridSize - 1, true},
 }};
 
-// Cuts a door of `door` cells into wall w (p1 <= p2), `offset` cells from p1, and appends the two remaining
-// pieces [p1, offset - 1] and [offset + door, p2] and the door.
+// Cuts a door of `door` cells into wall w (p1 <= p2), `offset` cells from p1, and appends the remaining
+// pieces [p1, offset - 1] and [offset + door, p2] and the door. A piece of a single cell is dropped, as the
+// original does: it would have no physical length, and its cell (where the wall meets another) stays free
+// unless that other wall holds it.
 void split_for_door(const WallCells& w, int offset, int door, std::vector<WallCells>& pieces,
                     std::vector<DoorCells>& doors) {
   const int dx = w.x2 > w.x1 ? 1 : 0, dy = w.y2 > w.y1 ? 1 : 0;
   const int first = offset, last = offset + door - 1;  // door cells, measured from p1
-  pieces.push_back({w.x1, w.y1, w.x1 + dx * (first - 1), w.y1 + dy * (first - 1), w.outer});
-  pieces.push_back({w.x1 + dx * (last + 1), w.y1 + dy * (last + 1), w.x2, w.y2, w.outer});
+  const int length = (w.x2 - w.x1) + (w.y2 - w.y1);
+  if (first - 1 > 0)
+    pieces.push_back({w.x1, w.y1, w.x1 + dx * (first - 1), w.y1 + dy * (first - 1), w.outer});
+  if (last + 1 < length)
+    pieces.push_back({w.x1 + dx * (last + 1), w.y1 + dy * (last + 1), w.x2, w.y2, w.outer});
   doors.push_back({w.x1 + dx * first, w.y1 + dy * first, w.x1 + dx * last, w.y1 + dy * last});
 }
 
@@ -419,15 +425,16 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     }
   }
 
-  // Occupancy: every cell of every piece, outer walls included even when they are dropped physically.
-  Grid grid;
-  grid.clear();
-  for (const WallCells& w : out.walls) grid.mark_wall(w);
+  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (SPEC §2.4,
+  // add_walls_to_grid after the drop).
   if (!out.outer_walls) {
     out.walls.erase(
         std::remove_if(out.walls.begin(), out.walls.end(), [](const WallCells& w) { return w.outer; }),
         out.walls.end());
   }
+  Grid grid;
+  grid.clear();
+  for (const WallCells& w : out.walls) grid.mark_wall(w);
   for (const WallCells& w : out.walls) add_wall_box(w, out.wall_boxes);
 
   const int tries = config.max_tries_per_object;

@@ -94,7 +94,7 @@ struct Spawn {
 struct Scene {
   Layout layout = Layout::kEmpty;
   bool outer_walls = true;
-  std::vector<WallCells> walls;       // wall segments after door splitting
+  std::vector<WallCells> walls;       // pieces after door splitting, >= 2 cells; no dropped outer walls
   std::vector<StaticBox> wall_boxes;  // the same walls as physical boxes (SPEC §1.3)
   std::vector<DoorCells> doors;
   int num_hiders = 0;

@@ -135,15 +135,17 @@ BoxKind box_kind(const Spawn& b) {
   const int outer =
       int(std::count_if(s.walls.begin(), s.walls.end(), [](const WallCells& w) { return w.outer; }));
   if (outer != (s.outer_walls ? 4 : 0)) return fail("outer wall count " + std::to_string(outer));
-  // Every object inside the arena, off the outer wall cells (0 and 29) even when those walls are dropped.
+  // Every object inside the arena, off the outer wall cells (0 and 29); where the outer walls are dropped
+  // their cells are free, but no placement reaches below cell 1.
   std::vector<Rect> rects;
   for (const Spawn& b : s.boxes) rects.push_back(rect_of(b));
   for (const Spawn& r : s.ramps) rects.push_back(rect_of(r));
+  const double hi = kFloorSize - (s.outer_walls ? kCellSize : 0.0);
   for (const Spawn& a : s.agents) {
-    if (!inside(rect_of(a), kCellSize, kFloorSize - kCellSize)) return fail("agent on an outer wall cell");
+    if (!inside(rect_of(a), kCellSize, hi)) return fail("agent on an outer wall cell");
   }
   for (const Rect& r : rects) {
-    if (!inside(r, kCellSize, kFloorSize - kCellSize)) return fail("box or ramp on an outer wall cell");
+    if (!inside(r, kCellSize, hi)) return fail("box or ramp on an outer wall cell");
   }
   // No overlaps between objects, or with a wall.
   for (size_t a = 0; a < s.agents.size(); ++a) {
@@ -170,9 +172,10 @@ BoxKind box_kind(const Spawn& b) {
 
 // ---------------------------------------------------------------------------------------------------------------
 // Random rooms: each door joins two collinear interior pieces (one ending just before it, one starting just
-// after it), and no piece borders two doors, so no interior wall has more than one door. Pieces of one cell
-// have no direction and collinear walls can meet end to end, so the pieces are matched to the doors by a
-// small search. Returns the number of interior walls before door splitting, or -1 with `why`.
+// after it), and no piece borders two doors, so no interior wall has more than one door. A side's piece may
+// be missing only where it would have been a single cell on another wall's line (the generator drops those).
+// Collinear walls can meet end to end, so the pieces are matched to the doors by a small search. Returns the
+// number of interior walls before door splitting, or -1 with `why`.
 struct DoorNeighbours {
   std::vector<size_t> before, after;
 };
@@ -195,6 +198,18 @@ int interior_walls(const Scene& s, std::string& why) {
   for (const WallCells& w : s.walls) {
     if (!w.outer) pieces.push_back(w);
   }
+  // Whether cell (x, y) lies on the arena's edge or on a piece perpendicular to a wall along `vertical`.
+  auto on_other_wall = [&](int x, int y, bool vertical) {
+    if (x == 0 || y == 0 || x == kGridSize - 1 || y == kGridSize - 1) return true;
+    for (const WallCells& w : s.walls) {
+      if ((w.x1 == w.x2) == vertical) continue;
+      if (x >= std::min(w.x1, w.x2) && x <= std::max(w.x1, w.x2) && y >= std::min(w.y1, w.y2) &&
+          y <= std::max(w.y1, w.y2))
+        return true;
+    }
+    return false;
+  };
+  size_t dropped = 0;  // single-cell pieces the generator dropped, each matched as a virtual piece
   std::vector<DoorNeighbours> neighbours;
   for (const DoorCells& d : s.doors) {
     const bool vertical = d.x1 == d.x2;
@@ -213,11 +228,19 @@ int interior_walls(const Scene& s, std::string& why) {
       if (hi == first - 1) n.before.push_back(p);
       if (lo == last + 1) n.after.push_back(p);
     }
+    const int before = first - 1, after = last + 1;
+    if (on_other_wall(vertical ? line : before, vertical ? before : line, vertical))
+      n.before.push_back(pieces.size() + dropped++);
+    if (on_other_wall(vertical ? line : after, vertical ? after : line, vertical))
+      n.after.push_back(pieces.size() + dropped++);
     neighbours.push_back(n);
   }
-  std::vector<bool> used(pieces.size(), false);
+  std::vector<bool> used(pieces.size() + dropped, false);
   if (!match_doors(neighbours, 0, used)) return why = "doors do not each split one wall in two", -1;
-  return int(pieces.size() - s.doors.size());
+  // Every real piece borders a door or is a wall without one; each virtual piece the match used was dropped.
+  size_t virtual_used = 0;
+  for (size_t v = pieces.size(); v < used.size(); ++v) virtual_used += used[v];
+  return int(pieces.size() + virtual_used - s.doors.size());
 }
 
 // ---------------------------------------------------------------------------------------------------------------
@@ -384,8 +407,15 @@ TEST(SceneQuadrant, DoorsAreTwoCellsOnTheRoomWallsOneOrTwoOfThem) {
     }
     ASSERT_LE(on_vertical, 1);
     ASSERT_LE(on_horizontal, 1);
-    // Room walls: two pieces per door, one for a wall without a door; outer walls stay whole.
-    ASSERT_EQ(s.walls.size(), 4 + 2 + s.doors.size());
+    // Room walls: two pieces per door, one for a wall without a door, less the pieces of a single cell (a
+    // door one cell from either end of its wall); outer walls stay whole.
+    size_t stubs = 0;
+    for (const DoorCells& d : s.doors) {
+      const bool vertical = d.x1 == 15 && d.x2 == 15;
+      const int first = vertical ? d.y1 : d.x1, wall_start = vertical ? 0 : 15, wall_end = vertical ? 15 : 29;
+      stubs += (first - 1 == wall_start) + (first + 2 == wall_end);
+    }
+    ASSERT_EQ(s.walls.size(), 4 + 2 + s.doors.size() - stubs) << "seed " << seed;
   }
   EXPECT_GT(scenes_with[1], 800);
   EXPECT_GT(scenes_with[2], 800);
@@ -478,8 +508,41 @@ TEST(SceneWalls, PhysicalBoxesFollowTheCells) {
   }
 }
 
+// The original drops wall pieces of a single cell (a door one cell from a wall's end): none is left, in
+// either game.
+TEST(SceneWalls, NoPieceOfASingleCell) {
+  for (const SceneConfig& config : {SceneConfig::quadrant(), SceneConfig::full()}) {
+    for (int seed = 0; seed < 2000; ++seed) {
+      const Scene s = make_scene(config, seed);
+      for (const WallCells& w : s.walls) {
+        ASSERT_FALSE(w.x1 == w.x2 && w.y1 == w.y2) << layout_name(config.layout) << " seed " << seed
+                                                   << ": piece at (" << w.x1 << ", " << w.y1 << ")";
+      }
+    }
+  }
+}
+
 // ---------------------------------------------------------------------------------------------------------------
 // Full game (SPEC §2.4, §2.6, §14.5).
+
+// Dropped outer walls leave their cells free (SPEC §2.4: the grid is marked after the drop): team mates
+// placed near their first member may then stand on the arena's last cell row or column; with the outer
+// walls kept they never do.
+TEST(SceneFull, DroppedOuterWallsFreeTheirCells) {
+  const SceneConfig config = SceneConfig::full();
+  int on_edge_cells[2] = {0, 0};  // scenes with an agent on cell row/column 29: outer walls dropped, kept
+  for (int seed = 0; seed < 3000; ++seed) {
+    const Scene s = make_scene(config, seed);
+    ASSERT_EQ(s.walls.size() >= 4 && s.walls[0].outer, s.outer_walls) << "seed " << seed;
+    for (const WallCells& w : s.walls) ASSERT_TRUE(!w.outer || s.outer_walls) << "seed " << seed;
+    bool edge = false;
+    for (const Spawn& a : s.agents)
+      edge = edge || a.x + 0.5 * a.sx > 5.8 + kEps || a.y + 0.5 * a.sy > 5.8 + kEps;
+    on_edge_cells[s.outer_walls ? 1 : 0] += edge;
+  }
+  EXPECT_GT(on_edge_cells[0], 5);
+  EXPECT_EQ(on_edge_cells[1], 0);
+}
 TEST(SceneFull, RoomsDoorsOuterWallsAndCounts) {
   const SceneConfig config = SceneConfig::full();
   const int n = 2000;
