@@ -56,7 +56,7 @@ void BM_RayFan(benchmark::State& state) {
     const double a = 2 * 3.14159265358979 * k / 30;
     dx[k] = float(std::cos(a)), dy[k] = float(std::sin(a)), dz[k] = 0.0f, len[k] = 6.0f;
   }
-  const int agents = shapes.live_spheres;
+  const int agents = shapes.live_spheres / shapes.spheres_per_body;
   for (auto _ : state) {
     for (int a = 0; a < agents; ++a) {
       Cast(shapes,

@@ -19,6 +19,9 @@ using Clock = std::chrono::steady_clock;
 constexpr float kPi = 3.14159265358979323846f;
 constexpr float kOutOfBoundsReward = -10.0f;  // SPEC §5.2
 constexpr float kAgentRadius = float(physics::kAgentRadius);
+constexpr float kArmRadius = float(physics::kArmRadius);
+// Every arm lies within this distance of its agent's centre, with 1.8 mm to spare (far above rounding).
+constexpr float kAgentReach = float(physics::kAgentReach);
 
 // Most wall pieces a scene of this config can have (each interior wall splits in two at its door).
 int max_walls(const physics::SceneConfig& scene) {
@@ -49,6 +52,14 @@ const LidarFan kLidarFan;
 const float kCosHalfCone = float(std::cos(physics::kVisionHalfAngle));
 // Lines of sight one agent casts at most (other agents, boxes, ramps); the scene maxima keep far below it.
 constexpr int kMaxSightLines = 128;
+
+// prep_obs after t steps of an episode with `prep` preparation steps (SPEC §4.3): t / (prep + 1e-5), which
+// first reads 1 after step prep + 1. Rounded to float that quotient would read 1 a step early once prep
+// exceeds a few hundred, so it is capped just below 1 until then.
+float prep_observation(int t, int prep) {
+  if (t > prep) return 1.0f;
+  return std::min(float(double(t) / (double(prep) + 1e-5)), std::nextafter(1.0f, 0.0f));
+}
 
 }  // namespace
 
@@ -92,7 +103,7 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
   layout_.others = std::max(0, layout_.max_agents - 1);
   layout_.shape_boxes = layout_.max_walls + layout_.max_boxes;
   layout_.shape_wedges = layout_.max_ramps;
-  layout_.shape_spheres = layout_.max_agents;
+  layout_.shape_spheres = Layout::kSpheresPerAgent * layout_.max_agents;
   if (layout_.others + layout_.max_boxes + layout_.max_ramps > kMaxSightLines) {
     throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": more than " +
                            std::to_string(kMaxSightLines) + " vision targets per agent");
@@ -272,6 +283,11 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
   if (config_.world.task == physics::WorldConfig::Task::kLockBox) lockbox_retarget(env);
 }
 
+void BatchSim::resync(int env) {
+  refresh_env(env);
+  observe_env(env);
+}
+
 void BatchSim::refresh_env(int env) {
   mirror_env(env);
   build_shapes(env);
@@ -363,14 +379,21 @@ void BatchSim::build_shapes(int env) {
     s.shape_wedge_c[sw + k] = exists ? s.ramp_rot[2 * i] : 1.0f;
     s.shape_wedge_s[sw + k] = exists ? s.ramp_rot[2 * i + 1] : 0.0f;
   }
+  // Per agent: its body sphere, then its two arms (SPEC §1.2), placed by the agent's yaw.
   const size_t ss = size_t(env) * L.shape_spheres;
-  for (int k = 0; k < L.shape_spheres; ++k) {
-    const size_t i = size_t(env) * L.max_agents + k;
-    const bool exists = k < L.max_agents && s.agent_exists[i] != 0;
-    s.shape_sphere_cx[ss + k] = exists ? s.agent_pos[3 * i] : 0.0f;
-    s.shape_sphere_cy[ss + k] = exists ? s.agent_pos[3 * i + 1] : 0.0f;
-    s.shape_sphere_cz[ss + k] = exists ? s.agent_pos[3 * i + 2] : kParkedZ;
-    s.shape_sphere_r[ss + k] = exists ? kAgentRadius : 0.01f;
+  for (int a = 0; a < L.max_agents; ++a) {
+    const size_t i = size_t(env) * L.max_agents + a;
+    const bool exists = s.agent_exists[i] != 0;
+    float arms[2][3];
+    physics::arm_centres(&s.agent_pos[3 * i], s.agent_rot[2 * i], s.agent_rot[2 * i + 1], arms);
+    const float* centres[Layout::kSpheresPerAgent] = {&s.agent_pos[3 * i], arms[0], arms[1]};
+    for (int k = 0; k < Layout::kSpheresPerAgent; ++k) {
+      const size_t slot = ss + size_t(a) * Layout::kSpheresPerAgent + k;
+      s.shape_sphere_cx[slot] = exists ? centres[k][0] : 0.0f;
+      s.shape_sphere_cy[slot] = exists ? centres[k][1] : 0.0f;
+      s.shape_sphere_cz[slot] = exists ? centres[k][2] : kParkedZ;
+      s.shape_sphere_r[slot] = !exists ? 0.01f : k == 0 ? kAgentRadius : kArmRadius;
+    }
   }
 }
 
@@ -401,12 +424,17 @@ ShapesView BatchSim::shapes(int env) const {
   v.num_wedges = layout_.shape_wedges, v.live_wedges = world.num_ramps();
   v.sphere_cx = s.shape_sphere_cx.data() + p, v.sphere_cy = s.shape_sphere_cy.data() + p;
   v.sphere_cz = s.shape_sphere_cz.data() + p, v.sphere_r = s.shape_sphere_r.data() + p;
-  v.num_spheres = layout_.shape_spheres, v.live_spheres = world.num_agents();
+  v.num_spheres = layout_.shape_spheres;
+  v.live_spheres = Layout::kSpheresPerAgent * world.num_agents();
+  v.spheres_per_body = Layout::kSpheresPerAgent;
+  v.body_reach = kAgentReach;
   return v;
 }
 
-// Vision (SPEC §4.1): a target is seen when it lies in the viewer's cone and the first shape on the segment
-// from the viewer's centre to the target's centre is the target itself. Each viewer's lines of sight to the
+// Vision (SPEC §4.1): a target is seen when its sight point lies in the viewer's cone and the first shape on
+// the segment from the viewer's centre to that point is the target itself (an agent's arms count as the
+// agent). Sight points are centres, a ramp's its centroid (physics::ramp_sight_point): all lie inside their
+// solid, so the segment always enters the target well before its end. Each viewer's lines of sight to the
 // targets in its cone form one ray fan.
 void BatchSim::vision_env(int env) {
   const Layout& L = layout_;
@@ -419,6 +447,7 @@ void BatchSim::vision_env(int env) {
   const float* box_pos = s.box_pos.data() + size_t(env) * L.max_boxes * 3;
   const uint8_t* box_exists = s.box_exists.data() + size_t(env) * L.max_boxes;
   const float* ramp_pos = s.ramp_pos.data() + size_t(env) * L.max_ramps * 3;
+  const float* ramp_rot = s.ramp_rot.data() + size_t(env) * L.max_ramps * 2;
   const uint8_t* ramp_exists = s.ramp_exists.data() + size_t(env) * L.max_ramps;
   uint8_t* vis_agents = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
   uint8_t* vis_boxes = s.vis_boxes.data() + size_t(env) * L.max_agents * L.max_boxes;
@@ -457,7 +486,11 @@ void BatchSim::vision_env(int env) {
       if (box_exists[b] != 0) aim(box_pos + 3 * b, walls + b, &vis_boxes[a * L.max_boxes + b]);
     }
     for (int r = 0; r < L.max_ramps; ++r) {
-      if (ramp_exists[r] != 0) aim(ramp_pos + 3 * r, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
+      if (ramp_exists[r] == 0) continue;
+      const float* p = ramp_pos + 3 * r;
+      float centroid[3];
+      physics::ramp_sight_point(p[0], p[1], p[2], ramp_rot[2 * r], ramp_rot[2 * r + 1], centroid);
+      aim(centroid, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
     }
     first_hits(shapes, RayFan{o[0], o[1], o[2], dx, dy, dz, len, n, shapes.sphere_id(a)}, t, hit);
     for (int k = 0; k < n; ++k) *flag[k] = hit[k] == want[k] ? 1 : 0;
@@ -562,8 +595,9 @@ void BatchSim::rewards_env(int env) {
   if (hiders > 0) ret[0] += hider_sum / hiders;
   if (n - hiders > 0) ret[1] += seeker_sum / (n - hiders);
 
-  // Statistics at the end of the preparation phase (SPEC §7).
-  if (t == wc.prep_steps()) measure_env(env, s.stat_prep.data() + size_t(env) * 4);
+  // Statistics at the end of the preparation phase (SPEC §7): when prep_obs first reads 1, after step
+  // prep_steps + 1 (or at the last step of an episode too short for that).
+  if (t == std::min(wc.prep_steps() + 1, wc.horizon)) measure_env(env, s.stat_prep.data() + size_t(env) * 4);
   s.done[env] = world.done() ? 1 : 0;
 }
 
@@ -698,9 +732,7 @@ void BatchSim::observe_env(int env) {
   std::fill_n(mask_ramps, size_t(A) * R, 0);
   std::fill_n(value_mask_ramps, size_t(A) * R, 0);
 
-  // prep_obs rises from 0 to 1 over the preparation phase (SPEC §4.3).
-  const int t = s.step_count[env];
-  const float prep_obs = std::min(1.0f, float(t) / (float(config_.world.prep_steps()) + 1e-5f));
+  const float prep_obs = prep_observation(s.step_count[env], config_.world.prep_steps());
   const float* pos = s.agent_pos.data() + ea * 3;
   const float* rot = s.agent_rot.data() + ea * 2;
   const float* vel = s.agent_vel.data() + ea * 3;

@@ -42,12 +42,13 @@ struct Layout {
   int others = 0;                            // A - 1 other-agent slots
   int shape_boxes = 0;                       // ray-cast shape slots: walls + boxes
   int shape_wedges = 0;                      // ramps
-  int shape_spheres = 0;                     // agents
+  int shape_spheres = 0;                     // agents and their arms: kSpheresPerAgent slots each
   static constexpr int kSelfFeatures = 11;   // pos 3, cos/sin yaw, vel 3, ang vel, hider, prep
   static constexpr int kAgentFeatures = 11;  // the same for another agent
   static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
   static constexpr int kLidar = 30;
+  static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
 };
 
 // Every per-env field of the batch: X(type, name, elements per env, doc). Env index outermost; one
@@ -89,7 +90,7 @@ struct Layout {
   X(float, shape_wedge_cz, L.shape_wedges, "centre z, m")                                                  \
   X(float, shape_wedge_c, L.shape_wedges, "cos yaw")                                                       \
   X(float, shape_wedge_s, L.shape_wedges, "sin yaw")                                                       \
-  X(float, shape_sphere_cx, L.shape_spheres, "agent occluder centre x, m (envs x SS)")                     \
+  X(float, shape_sphere_cx, L.shape_spheres, "agent body, arm, arm centre x, m (envs x SS = A x 3)")       \
   X(float, shape_sphere_cy, L.shape_spheres, "centre y, m")                                                \
   X(float, shape_sphere_cz, L.shape_spheres, "centre z, m")                                                \
   X(float, shape_sphere_r, L.shape_spheres, "radius, m")                                                   \
@@ -225,8 +226,12 @@ class BatchSim {
   void compute_observations(int env) { observe_env(env); }
   // The underlying world of env e (read-only; tests and tools).
   const physics::World& world(int env) const { return *worlds_[env]; }
-  // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step.
+  // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step,
+  // or at once with resync().
   physics::World& mutable_world(int env) { return *worlds_[env]; }
+  // Re-reads env e's bodies from its world and recomputes vision, lidar and observations exactly as a step
+  // does after physics (rewards, statistics and counters are left alone).
+  void resync(int env);
 
  private:
   struct EnvScratch;

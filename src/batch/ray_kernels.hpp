@@ -19,8 +19,10 @@ int ray_simd_width();
 inline constexpr float kParkedZ = -1.0e4f;  // m, z of a padding slot's centre
 inline constexpr float kNoHitT = 1.0e30f;   // distance reported for a ray that hits nothing
 
-// Read-only view of one env's shapes. Shape ids: box slots [0, num_boxes), wedge slots next, sphere slots
-// last. Boxes hold walls and movable boxes alike; yaw as cos/sin; ramps are wedges of the fixed ramp size.
+// Read-only view of one env's shapes. Shape ids: box slots [0, num_boxes), wedge slots next, then one id per
+// sphere *body*: spheres come in groups of spheres_per_body slots (an agent and its two arms), and sphere
+// slot k reports the id of body k / spheres_per_body. Boxes hold walls and movable boxes alike; yaw as
+// cos/sin; ramps are wedges of the fixed ramp size.
 struct ShapesView {
   const float *box_cx, *box_cy, *box_cz;        // centre, m
   const float *box_hx, *box_hy, *box_hz;        // half extents, m
@@ -30,9 +32,14 @@ struct ShapesView {
   const float *wedge_c, *wedge_s;               // cos, sin of yaw
   int num_wedges, live_wedges;
   const float *sphere_cx, *sphere_cy, *sphere_cz, *sphere_r;  // centre and radius, m
-  int num_spheres, live_spheres;
+  int num_spheres, live_spheres;                              // slots, and slots [0, live) in use
+  int spheres_per_body = 1;                                   // slots per sphere body
+  // Every sphere of a body lies within this distance of the body's first sphere's centre (m). A block of
+  // rays that all pass farther away skips the body's other spheres: an early out that changes no result.
+  float body_reach = 0.0f;
 
   int wedge_id(int i) const { return num_boxes + i; }
+  // The id of sphere body i (slots [i·spheres_per_body, (i + 1)·spheres_per_body)).
   int sphere_id(int i) const { return num_boxes + num_wedges + i; }
 };
 
@@ -42,7 +49,7 @@ struct RayFan {
   const float *dx, *dy, *dz;  // unit directions (count each)
   const float* max_t;         // lengths, m (count)
   int count;                  // any count >= 0; no padding needed
-  int skip_id;                // a shape every ray ignores (the caster's own body), -1 for none
+  int skip_id;                // a shape or sphere body every ray ignores (the caster's own), -1 for none
 };
 
 // Per ray of the fan, the first shape hit: t[i] its distance (kNoHitT if none within max_t) and id[i] its id

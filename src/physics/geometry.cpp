@@ -50,21 +50,23 @@ double ray_wedge(const double origin[3], const double dir[3], const Wedge& w) {
   double o[3], d[3];
   to_local(origin, w.cx, w.cy, w.cz, w.c, w.s, o);
   dir_to_local(dir, w.c, w.s, d);
-  const double h = kRampHalf;
+  const double h = kRampHalf + w.grow;
+  const double slope = w.grow * std::sqrt(2.0);  // the slope plane y + z <= 0 moved out by `grow`
   double t0 = 0, t1 = kNoHit;
   if (!clip(o[0] - h, d[0], t0, t1) || !clip(-o[0] - h, -d[0], t0, t1)) return kNoHit;
   if (!clip(-o[1] - h, -d[1], t0, t1) || !clip(-o[2] - h, -d[2], t0, t1)) return kNoHit;
-  if (!clip(o[1] + o[2], d[1] + d[2], t0, t1)) return kNoHit;  // slope y + z <= 0
+  if (!clip(o[1] + o[2] - slope, d[1] + d[2], t0, t1)) return kNoHit;  // slope y + z <= 0
   return t0;
 }
 
 double ray_sphere(const double origin[3], const double dir[3], const Sphere& sp) {
   const double m[3] = {origin[0] - sp.cx, origin[1] - sp.cy, origin[2] - sp.cz};
   const double b = m[0] * dir[0] + m[1] * dir[1] + m[2] * dir[2];
-  const double c = m[0] * m[0] + m[1] * m[1] + m[2] * m[2] - sp.r * sp.r;
-  if (c <= 0) return 0;  // origin inside
+  if (m[0] * m[0] + m[1] * m[1] + m[2] * m[2] <= sp.r * sp.r) return 0;  // origin inside
   if (b > 0) return kNoHit;
-  const double disc = b * b - c;
+  // r² - |q|², q = the centre's offset from the ray's closest point: no cancellation for far spheres.
+  const double q[3] = {m[0] - b * dir[0], m[1] - b * dir[1], m[2] - b * dir[2]};
+  const double disc = sp.r * sp.r - (q[0] * q[0] + q[1] * q[1] + q[2] * q[2]);
   if (disc < 0) return kNoHit;
   return -b - std::sqrt(disc);
 }
@@ -89,6 +91,10 @@ RayHit cast_ray(const Occluders& occ, const double origin[3], const double dir[3
   for (size_t i = 0; i < occ.agents.size(); ++i) {
     if (int(i) != skip_agent) consider(ray_sphere(origin, dir, occ.agents[i]), HitKind::kAgent, int(i));
   }
+  for (size_t i = 0; i < occ.arms.size(); ++i) {
+    const int agent = int(i / 2);
+    if (agent != skip_agent) consider(ray_sphere(origin, dir, occ.arms[i]), HitKind::kAgent, agent);
+  }
   return hit;
 }
 
@@ -102,8 +108,7 @@ bool in_vision_cone(double vx, double vy, double yaw_c, double yaw_s, double tx,
   return cos_angle >= std::cos(kVisionHalfAngle);
 }
 
-namespace {
-void target_centre(const Occluders& occ, HitKind kind, int index, double out[3]) {
+void sight_point(const Occluders& occ, HitKind kind, int index, double out[3]) {
   switch (kind) {
     case HitKind::kAgent: {
       const Sphere& a = occ.agents[index];
@@ -117,24 +122,23 @@ void target_centre(const Occluders& occ, HitKind kind, int index, double out[3])
     }
     default: {
       const Wedge& r = occ.ramps[index];
-      out[0] = r.cx, out[1] = r.cy, out[2] = r.cz;
+      ramp_sight_point(r.cx, r.cy, r.cz, r.c, r.s, out);
       break;
     }
   }
 }
-}  // namespace
 
 bool line_of_sight(const Occluders& occ, int viewer, HitKind target_kind, int target_index) {
   const Sphere& v = occ.agents[viewer];
   const double origin[3] = {v.cx, v.cy, v.cz};
   double target[3];
-  target_centre(occ, target_kind, target_index, target);
+  sight_point(occ, target_kind, target_index, target);
   double dir[3] = {target[0] - origin[0], target[1] - origin[1], target[2] - origin[2]};
   const double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
   if (len < 1e-12) return true;
   for (double& x : dir) x /= len;
-  // The ray runs to the target's centre, so the target is always hit by then.
-  const RayHit hit = cast_ray(occ, origin, dir, len + 1e-9, viewer);
+  // The segment ends inside the target, so the target is hit before its end, with room to spare.
+  const RayHit hit = cast_ray(occ, origin, dir, len, viewer);
   return hit.kind == target_kind && hit.index == target_index;
 }
 
@@ -142,7 +146,7 @@ bool visible(const Occluders& occ, int viewer, double yaw_c, double yaw_s, HitKi
              int target_index) {
   const Sphere& v = occ.agents[viewer];
   double target[3];
-  target_centre(occ, target_kind, target_index, target);
+  sight_point(occ, target_kind, target_index, target);
   if (target_kind == HitKind::kAgent && target_index == viewer) return true;
   return in_vision_cone(v.cx, v.cy, yaw_c, yaw_s, target[0], target[1]) &&
          line_of_sight(occ, viewer, target_kind, target_index);
@@ -170,8 +174,8 @@ double distance_to_box(const double p[3], const OrientedBox& box) {
   return std::sqrt(sq);
 }
 
-OrientedBox wedge_bounds(const Wedge& w) {
-  return OrientedBox{w.cx, w.cy, w.cz, kRampHalf, kRampHalf, kRampHalf, w.c, w.s};
+OrientedBox ramp_reach_box(const Wedge& w) {
+  return OrientedBox{w.cx, w.cy, w.cz, kRampReachHalf[0], kRampReachHalf[1], kRampReachHalf[2], w.c, w.s};
 }
 
 }  // namespace hns::physics

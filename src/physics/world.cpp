@@ -3,6 +3,7 @@
 #include <ode/ode.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -30,9 +31,6 @@ constexpr double kRampFriction = 0.01;
 constexpr double kFloorFriction = 0.2;
 constexpr double kQuadrantWallFriction = 0.01;
 constexpr double kRandomWallFriction = 1.0;  // RandomWalls passes no friction: MuJoCo's default
-// Ramp volume centroid in its bounding-box frame; the ODE body origin sits there.
-constexpr double kRampCentroidY = -1.0 / 12.0;
-constexpr double kRampCentroidZ = -1.0 / 12.0;
 // Wedge yaw inertia about its centroid: m·(a²/12 + Var_y(triangle)) with a = 0.5.
 constexpr double kRampYawInertia = 0.5 * 0.5 / 12.0 + 0.25 / 18.0;
 // Bodies outside these bounds (or non-finite) make the world unstable.
@@ -55,9 +53,12 @@ const double kRampPlanes[20] = {
 };
 unsigned int kRampPolygons[] = {4, 0, 3, 2, 1, 4, 0, 1, 5, 4, 4, 3, 4, 5, 2, 3, 0, 4, 3, 3, 1, 2, 5};
 
-// Friction of a geom, stored as its ODE user data.
+// A geom's ODE user data: its friction, and for an agent's broad-phase proxy the geoms that really collide
+// (its body sphere and two arms).
 struct GeomInfo {
   double friction;
+  std::array<dGeomID, 3> parts{};  // body sphere first
+  int num_parts = 0;
 };
 
 // Extra, deterministic work per env step in builds configured with HNS_INJECT_STEP_WORK > 0: the perf
@@ -98,37 +99,38 @@ struct World::Ode {
   dJointGroupID contacts = nullptr;
   dThreadingImplementationID threading = nullptr;
   std::vector<dBodyID> agents, boxes, ramps;
+  // An agent is a broad-phase proxy in the dynamic space (a sphere holding body and arms, never collided
+  // itself) whose parts, outside any space, are collided only when the proxy overlaps something. The body
+  // sphere is fixed to the agent's body; the arms have none and are placed from its pose when collided, so
+  // they cost nothing while the agent is clear of everything.
   std::vector<dGeomID> agent_geoms, box_geoms, ramp_geoms, walls;
+  std::vector<dGeomID> agent_parts;        // three per agent: body sphere, left arm, right arm
+  std::vector<GeomInfo> agent_proxy_info;  // per agent: its parts
   std::vector<dMass> box_mass;
   std::vector<dJointID> grab;  // per agent, nullptr = none
-  GeomInfo agent_info{kAgentFriction}, box_info{kBoxFriction}, ramp_info{kRampFriction};
-  GeomInfo floor_info{kFloorFriction}, wall_info{kQuadrantWallFriction};
+  GeomInfo agent_info{kAgentFriction}, box_info{kBoxFriction};
+  GeomInfo ramp_info{kRampFriction}, floor_info{kFloorFriction}, wall_info{kQuadrantWallFriction};
 
-  dBodyID object_body(int object) const {
-    return object < int(boxes.size()) ? boxes[object] : ramps[object - boxes.size()];
+  // Object o of an episode with `num_boxes` boxes: boxes first, then ramps (the slot vectors hold the
+  // maxima, so a ramp's slot does not follow the last box slot).
+  dBodyID object_body(int object, int num_boxes) const {
+    return object < num_boxes ? boxes[object] : ramps[object - num_boxes];
   }
 };
 
 namespace {
 
-// ODE near callback: contacts between geoms with the pair friction max(μ1, μ2) (SPEC §1.2, Coulomb
-// pyramid scaled by the normal force).
-void near_callback(void* data, dGeomID g1, dGeomID g2) {
-  auto* ode = static_cast<World::Ode*>(data);
-  dBodyID b1 = dGeomGetBody(g1);
-  dBodyID b2 = dGeomGetBody(g2);
-  // Only a pair with an awake dynamic body can produce a contact; a sleeping body touched by an awake one is
-  // woken by ODE through the contact.
-  const bool awake1 = b1 != nullptr && dBodyIsEnabled(b1) && !dBodyIsKinematic(b1);
-  const bool awake2 = b2 != nullptr && dBodyIsEnabled(b2) && !dBodyIsKinematic(b2);
-  if (!awake1 && !awake2) return;
-  // A held object does not collide with its holder.
-  if (b1 != nullptr && b2 != nullptr && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
+GeomInfo* info(dGeomID g) {
+  return static_cast<GeomInfo*>(dGeomGetData(g));
+}
+
+// Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
+// max(μ1, μ2) (SPEC §1.2, Coulomb pyramid scaled by the normal force).
+void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b2) {
   dContact contact[kMaxContactsPerPair];
   const int n = dCollide(g1, g2, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
   if (n == 0) return;
-  const double mu = std::max(static_cast<GeomInfo*>(dGeomGetData(g1))->friction,
-                             static_cast<GeomInfo*>(dGeomGetData(g2))->friction);
+  const double mu = std::max(info(g1)->friction, info(g2)->friction);
   for (int i = 0; i < n; ++i) {
     // ODE's convex-box collider returns a zero normal for exactly touching faces; such a contact would
     // poison the whole world with NaN, so it is dropped (the next substep sees a proper overlap).
@@ -143,6 +145,57 @@ void near_callback(void* data, dGeomID g1, dGeomID g2) {
     contact[i].surface.mu = mu;
     dJointID joint = dJointCreateContact(ode->world, ode->contacts, &contact[i]);
     dJointAttach(joint, b1, b2);
+  }
+}
+
+// Places arm k (geom `arm`, bodyless) of the agent with body `body` and tells whether it may touch the
+// axis-aligned box aabb = (x0, x1, y0, y1, z0, z1): whether its own bounding box overlaps it.
+bool place_arm(dGeomID arm, dBodyID body, int k, const dReal aabb[6]) {
+  const dReal* p = dBodyGetPosition(body);
+  const dReal* R = dBodyGetRotation(body);  // 3 x 4, row major
+  const double* o = kArmOffset[k];
+  double c[3];
+  for (int axis = 0; axis < 3; ++axis) {
+    c[axis] = p[axis] + R[4 * axis] * o[0] + R[4 * axis + 1] * o[1] + R[4 * axis + 2] * o[2];
+    if (c[axis] + kArmRadius < aabb[2 * axis] || c[axis] - kArmRadius > aabb[2 * axis + 1]) return false;
+  }
+  dGeomSetPosition(arm, c[0], c[1], c[2]);
+  return true;
+}
+
+// ODE near callback for a pair whose bounding boxes overlap. An agent's proxy stands for its parts: its
+// body sphere always, each arm (placed from the body's pose first) where the arm's own bounding box meets
+// the other side's.
+void near_callback(void* data, dGeomID g1, dGeomID g2) {
+  auto* ode = static_cast<World::Ode*>(data);
+  dBodyID b1 = dGeomGetBody(g1);
+  dBodyID b2 = dGeomGetBody(g2);
+  // Only a pair with an awake dynamic body can produce a contact; a sleeping body touched by an awake one is
+  // woken by ODE through the contact.
+  const bool awake1 = b1 != nullptr && dBodyIsEnabled(b1) && !dBodyIsKinematic(b1);
+  const bool awake2 = b2 != nullptr && dBodyIsEnabled(b2) && !dBodyIsKinematic(b2);
+  if (!awake1 && !awake2) return;
+  // A held object does not collide with its holder.
+  if (b1 != nullptr && b2 != nullptr && dAreConnectedExcluding(b1, b2, dJointTypeContact)) return;
+  const GeomInfo* i1 = info(g1);
+  const GeomInfo* i2 = info(g2);
+  if (i1->num_parts == 0 && i2->num_parts == 0) {
+    add_contacts(ode, g1, b1, g2, b2);
+    return;
+  }
+  // Against the floor only an agent's body sphere counts: its arms hang 0.05 m above it.
+  const bool floor = dGeomGetClass(g1) == dPlaneClass || dGeomGetClass(g2) == dPlaneClass;
+  dReal box1[6], box2[6];
+  dGeomGetAABB(g1, box1);
+  dGeomGetAABB(g2, box2);
+  const int n1 = i1->num_parts > 0 && !floor ? i1->num_parts : 1;
+  const int n2 = i2->num_parts > 0 && !floor ? i2->num_parts : 1;
+  for (int a = 0; a < n1; ++a) {
+    if (a > 0 && !place_arm(i1->parts[a], b1, a - 1, box2)) continue;
+    for (int b = 0; b < n2; ++b) {
+      if (b > 0 && !place_arm(i2->parts[b], b2, b - 1, box1)) continue;
+      add_contacts(ode, i1->num_parts > 0 ? i1->parts[a] : g1, b1, i2->num_parts > 0 ? i2->parts[b] : g2, b2);
+    }
   }
 }
 
@@ -276,11 +329,27 @@ World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
     dGeomDisable(geom);
     return body;
   };
+  // Agents: the proxy in the space, then its parts outside it: the body sphere and the two massless arms
+  // (SPEC §1.2).
+  o.agent_proxy_info.assign(max_agents, GeomInfo{kAgentFriction});
   for (int i = 0; i < max_agents; ++i) {
-    dGeomID g = dCreateSphere(o.dynamic_space, kAgentRadius);
-    o.agent_geoms.push_back(g);
-    o.agents.push_back(make_body(g, &o.agent_info, kAgentYawInertia));
+    dGeomID proxy = dCreateSphere(o.dynamic_space, kAgentReach);
+    o.agent_geoms.push_back(proxy);
+    dBodyID body = make_body(proxy, &o.agent_proxy_info[i], kAgentYawInertia);
+    o.agents.push_back(body);
+    GeomInfo& proxy_info = o.agent_proxy_info[i];
+    dGeomID main = dCreateSphere(nullptr, kAgentRadius);
+    dGeomSetBody(main, body);
+    dGeomSetData(main, &o.agent_info);
+    proxy_info.parts[proxy_info.num_parts++] = main;
+    for (int k = 0; k < 2; ++k) {
+      dGeomID arm = dCreateSphere(nullptr, kArmRadius);  // bodyless: placed where it is collided
+      dGeomSetData(arm, &o.agent_info);
+      proxy_info.parts[proxy_info.num_parts++] = arm;
+    }
+    o.agent_parts.insert(o.agent_parts.end(), proxy_info.parts.begin(), proxy_info.parts.end());
   }
+
   // Boxes and ramps at rest fall asleep (leave the solver) until something touches them.
   auto allow_sleep = [&](dBodyID body) {
     if (!config_.physics.sleep) return body;
@@ -320,7 +389,8 @@ World::~World() {
     if (j != nullptr) dJointDestroy(j);
   }
   dJointGroupDestroy(o.contacts);
-  dSpaceDestroy(o.dynamic_space);  // destroys its geoms
+  for (dGeomID g : o.agent_parts) dGeomDestroy(g);  // outside any space
+  dSpaceDestroy(o.dynamic_space);                   // destroys its geoms
   dSpaceDestroy(o.static_space);
   dWorldSetStepThreadingImplementation(o.world, nullptr, nullptr);
   dThreadingFreeImplementation(o.threading);
@@ -471,7 +541,7 @@ void World::substep(std::span<const double> forces) {
     // An agent holding an object moves it too: its damping sees the pair's mass and yaw inertia.
     double mass = kBodyMass, yaw_inertia = kAgentYawInertia;
     if (holding_[a] >= 0) {
-      dBodyID held = o.object_body(holding_[a]);
+      dBodyID held = o.object_body(holding_[a], num_boxes());
       const dReal* pa = dBodyGetPosition(o.agents[a]);
       const dReal* ph = dBodyGetPosition(held);
       const double d2 = (pa[0] - ph[0]) * (pa[0] - ph[0]) + (pa[1] - ph[1]) * (pa[1] - ph[1]);
@@ -535,7 +605,7 @@ double World::agent_object_distance(int agent, int object) const {
     box = OrientedBox{b.pos[0], b.pos[1], b.pos[2], 0.5 * s.sx, 0.5 * s.sy, 0.5 * s.sz, b.cos_yaw, b.sin_yaw};
   } else {
     const BodyState r = ramp_state(object - num_boxes());
-    box = wedge_bounds(Wedge{r.pos[0], r.pos[1], r.pos[2], r.cos_yaw, r.sin_yaw});
+    box = ramp_reach_box(Wedge{r.pos[0], r.pos[1], r.pos[2], r.cos_yaw, r.sin_yaw});
   }
   return distance_to_box(a.pos, box);
 }
@@ -573,8 +643,8 @@ void World::apply_grab(std::span<const AgentAction> actions) {
     release(a);
     if (target >= 0) {
       dJointID joint = dJointCreateFixed(o.world, nullptr);
-      dBodyEnable(o.object_body(target));  // a sleeping object wakes when grabbed
-      dJointAttach(joint, o.agents[a], o.object_body(target));
+      dBodyEnable(o.object_body(target, num_boxes()));  // a sleeping object wakes when grabbed
+      dJointAttach(joint, o.agents[a], o.object_body(target, num_boxes()));
       dJointSetFixed(joint);
       o.grab[a] = joint;
       holding_[a] = target;
@@ -622,7 +692,7 @@ void World::apply_lock(std::span<const AgentAction> actions) {
 
 void World::set_locked(int object, bool locked) {
   Ode& o = *ode_;
-  dBodyID body = o.object_body(object);
+  dBodyID body = o.object_body(object, num_boxes());
   if (locked) {
     dBodySetKinematic(body);
     dBodySetLinearVel(body, 0, 0, 0);
@@ -717,11 +787,15 @@ Occluders World::occluders() {
     occ_ramps_.push_back({s.pos[0], s.pos[1], s.pos[2], s.cos_yaw, s.sin_yaw});
   }
   occ_agents_.clear();
+  occ_arms_.clear();
   for (int a = 0; a < num_agents(); ++a) {
     const BodyState s = agent_state(a);
     occ_agents_.push_back({s.pos[0], s.pos[1], s.pos[2], kAgentRadius});
+    double arms[2][3];
+    arm_centres(s.pos, s.cos_yaw, s.sin_yaw, arms);
+    for (const auto& arm : arms) occ_arms_.push_back({arm[0], arm[1], arm[2], kArmRadius});
   }
-  return Occluders{occ_walls_, occ_boxes_, occ_ramps_, occ_agents_};
+  return Occluders{occ_walls_, occ_boxes_, occ_ramps_, occ_agents_, occ_arms_};
 }
 
 void World::update_visibility() {

@@ -160,7 +160,7 @@ class World {
   }
   void update_visibility();
 
-  // The current geometry as occluders for the scalar vision and lidar routines.
+  // The current geometry as occluders for the scalar vision and lidar routines (agents with their arms).
   Occluders occluders();
 
   // Test and tooling hooks: move a body (velocities are zeroed).
@@ -203,7 +203,7 @@ class World {
   // Occluder scratch (refreshed by occluders()).
   std::vector<OrientedBox> occ_walls_, occ_boxes_;
   std::vector<Wedge> occ_ramps_;
-  std::vector<Sphere> occ_agents_;
+  std::vector<Sphere> occ_agents_, occ_arms_;
 };
 
 }  // namespace hns::physics

@@ -188,6 +188,70 @@ TEST(RayKernels, CasterIsSkipped) {
   EXPECT_EQ(t[1], kNoHitT);
 }
 
+// Agents as sphere bodies of three slots (body, two arms): a hit on an arm reports the body's id, the
+// caster's arms are skipped with it, and the early out past a body's reach changes no bit (vector and
+// scalar).
+TEST(RayKernels, SphereBodiesShareTheirIdAndTheEarlyOutChangesNothing) {
+  physics::Rng rng(8, 0, 0);
+  int arm_hits = 0, rays = 0;
+  for (int scene = 0; scene < 20; ++scene) {
+    const int bodies = 1 + scene % 6;
+    RandomShapes s(rng, 6, 1, 3 * bodies, 0);
+    for (int b = 0; b < bodies; ++b) {
+      const float centre[3] = {s.scx[3 * b], s.scy[3 * b], s.scz[3 * b]};
+      const float yaw = float(rng.uniform(-3.2, 3.2));
+      float arm[2][3];
+      physics::arm_centres(centre, std::cos(yaw), std::sin(yaw), arm);
+      for (int k = 0; k < 2; ++k) {
+        s.scx[3 * b + 1 + k] = arm[k][0], s.scy[3 * b + 1 + k] = arm[k][1], s.scz[3 * b + 1 + k] = arm[k][2];
+        s.sr[3 * b + 1 + k] = float(physics::kArmRadius);
+      }
+    }
+    ShapesView reach = s.view();
+    reach.spheres_per_body = 3;
+    reach.body_reach = float(physics::kAgentReach);
+    ShapesView every = reach;
+    every.body_reach = 0.0f;
+    ShapesView no_arms = reach;  // the same bodies without arms: radius-0 arms are never hit from outside
+    std::vector<float> zero_r = s.sr;
+    for (int b = 0; b < bodies; ++b) zero_r[3 * b + 1] = zero_r[3 * b + 2] = 0.0f;
+    no_arms.sphere_r = zero_r.data();
+    for (int count = 0; count <= 2 * ray_simd_width() + 1; ++count) {
+      for (int rep = 0; rep < 6; ++rep) {
+        const int skip = rng.uniform_int(-1, bodies);
+        RandomFan f(rng, count, skip >= 0 ? reach.sphere_id(skip) : -1);
+        // Every other ray aims near a random arm, so that arms are grazed and hit.
+        for (int i = 0; i < count; i += 2) {
+          const int k = 3 * rng.uniform_int(0, bodies) + 1 + rng.uniform_int(0, 2);
+          const double tx = s.scx[k] + rng.uniform(-0.06, 0.06) - f.fan.ox;
+          const double ty = s.scy[k] + rng.uniform(-0.06, 0.06) - f.fan.oy;
+          const double tz = s.scz[k] + rng.uniform(-0.06, 0.06) - f.fan.oz;
+          const double len = std::sqrt(tx * tx + ty * ty + tz * tz);
+          f.dx[i] = float(tx / len), f.dy[i] = float(ty / len), f.dz[i] = float(tz / len);
+        }
+        Hits a(count), b(count), c(count), d(count);
+        first_hits(reach, f.fan, a.t.data(), a.id.data());
+        first_hits(every, f.fan, b.t.data(), b.id.data());
+        first_hits_scalar(reach, f.fan, c.t.data(), c.id.data());
+        first_hits(no_arms, f.fan, d.t.data(), d.id.data());
+        for (int i = 0; i < count; ++i) {
+          ASSERT_EQ(a.id[i], b.id[i]);
+          ASSERT_EQ(std::memcmp(&a.t[i], &b.t[i], sizeof(float)), 0) << "the early out changed a result";
+          ASSERT_EQ(a.id[i], c.id[i]);
+          ASSERT_EQ(std::memcmp(&a.t[i], &c.t[i], sizeof(float)), 0) << "vector and scalar differ";
+          ASSERT_LT(a.id[i], reach.sphere_id(bodies)) << "every sphere hit reports its body";
+          if (skip >= 0) {
+            ASSERT_NE(a.id[i], reach.sphere_id(skip)) << "the caster's arms are skipped";
+          }
+          arm_hits += a.id[i] >= reach.sphere_id(0) && (a.t[i] != d.t[i] || a.id[i] != d.id[i]);
+          ++rays;
+        }
+      }
+    }
+  }
+  EXPECT_GT(arm_hits, 500) << "of " << rays << " rays: the arms must be hit for the check to mean something";
+}
+
 // Against the physics layer's double-precision reference: same first shape and distance within 1e-4 m,
 // except for near-ties where float rounding may pick the other of two shapes.
 TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
@@ -203,7 +267,7 @@ TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
       boxes.push_back({s.bcx[i], s.bcy[i], s.bcz[i], s.bhx[i], s.bhy[i], s.bhz[i], s.bc[i], s.bs[i]});
     for (int i = 0; i < 2; ++i) wedges.push_back({s.wcx[i], s.wcy[i], s.wcz[i], s.wc[i], s.ws[i]});
     for (int i = 0; i < 5; ++i) spheres.push_back({s.scx[i], s.scy[i], s.scz[i], s.sr[i]});
-    const physics::Occluders occ{{}, boxes, wedges, spheres};
+    const physics::Occluders occ{{}, boxes, wedges, spheres, {}};
     for (int k = 0; k < 10; ++k) {
       const int skip_sphere = rng.uniform_int(-1, 5);
       const RandomFan f(rng, 20, skip_sphere >= 0 ? v.sphere_id(skip_sphere) : -1);

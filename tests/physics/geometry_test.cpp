@@ -136,5 +136,75 @@ TEST(Geometry, DistanceToOrientedBox) {
   EXPECT_DOUBLE_EQ(distance_to_box(beside, turned), 0.0);
 }
 
+// A ramp's sight point is its centroid (0, -1/12, -1/12) in its bounding-box frame, turned with the ramp;
+// it lies inside the wedge, (1/6)/√2 from the slope.
+TEST(Geometry, RampSightPointIsTheCentroidInsideTheWedge) {
+  for (const double yaw : {0.0, 0.7, kPi / 2, -2.0}) {
+    const Wedge w{3.0, 2.0, 0.25, std::cos(yaw), std::sin(yaw)};
+    double p[3];
+    ramp_sight_point(w.cx, w.cy, w.cz, w.c, w.s, p);
+    EXPECT_NEAR(std::hypot(p[0] - 3.0, p[1] - 2.0), 1.0 / 12.0, 1e-12);
+    EXPECT_NEAR(p[2], 0.25 - 1.0 / 12.0, 1e-12);
+    // In the ramp's frame: local y = -1/12 (toward its back face, which is at local -y).
+    const double local_y = -w.s * (p[0] - w.cx) + w.c * (p[1] - w.cy);
+    EXPECT_NEAR(local_y, -1.0 / 12.0, 1e-12);
+    // Rays from far away in every direction toward it enter the wedge at least 0.117 m before it.
+    for (int k = 0; k < 16; ++k) {
+      const double a = 2 * kPi * k / 16, origin[3] = {p[0] + 3 * std::cos(a), p[1] + 3 * std::sin(a), 0.6};
+      double dir[3] = {p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]};
+      const double len = std::sqrt(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
+      for (double& d : dir) d /= len;
+      EXPECT_LT(ray_wedge(origin, dir, w), len - 0.117) << "yaw " << yaw << ", direction " << k;
+    }
+  }
+}
+
+// Grab and lock measure a ramp through the cuboid (0.2357, 0.25, 0.3536) about its bounding-box centre.
+TEST(Geometry, RampReachBoxIsTheSpecCuboid) {
+  const OrientedBox reach = ramp_reach_box(Wedge{3.0, 3.0, 0.25, 0.0, 1.0});  // turned by 90°
+  EXPECT_DOUBLE_EQ(reach.hx, 0.2357);
+  EXPECT_DOUBLE_EQ(reach.hy, 0.25);
+  EXPECT_DOUBLE_EQ(reach.hz, 0.3536);
+  const double above[3] = {3.0, 3.0, 0.25 + 0.3536 + 0.1}, beside[3] = {3.0, 3.0 + 0.2357 + 0.1, 0.25};
+  EXPECT_NEAR(distance_to_box(above, reach), 0.1, 1e-12);
+  EXPECT_NEAR(distance_to_box(beside, reach), 0.1, 1e-12) << "the ramp's x axis points along world y";
+}
+
+// Arms are part of their agent: a ray through an arm reports the agent; the caster's own arms are skipped.
+TEST(Geometry, ArmsBelongToTheirAgent) {
+  const double centre[3] = {3.0, 3.0, 0.15};
+  double arm[2][3];
+  arm_centres(centre, 1.0, 0.0, arm);  // yaw 0: arms at (2.87, 2.925, 0.10) and (3.13, 2.925, 0.10)
+  EXPECT_NEAR(arm[0][0], 2.87, 1e-12);
+  EXPECT_NEAR(arm[1][0], 3.13, 1e-12);
+  EXPECT_NEAR(arm[0][1], 2.925, 1e-12);
+  EXPECT_NEAR(arm[0][2], 0.10, 1e-12);
+  const std::vector<Sphere> agents = {{3.0, 3.0, 0.15, 0.15}, {1.0, 2.925, 0.10, 0.15}};
+  const std::vector<Sphere> arms = {
+      {arm[0][0], arm[0][1], arm[0][2], kArmRadius}, {arm[1][0], arm[1][1], arm[1][2], kArmRadius}, {}, {}};
+  const Occluders occ{{}, {}, {}, agents, arms};
+  // Along +x at the arms' height and row, from beyond the right arm back toward the agent: the right arm
+  // (x 3.13 + 0.05) is the first thing hit.
+  const double origin[3] = {4.0, 2.925, 0.10}, west[3] = {-1.0, 0.0, 0.0};
+  RayHit hit = cast_ray(occ, origin, west, 10.0, 1);
+  EXPECT_EQ(hit.kind, HitKind::kAgent);
+  EXPECT_EQ(hit.index, 0);
+  EXPECT_NEAR(hit.t, 4.0 - 3.18, 1e-9);
+  hit = cast_ray(occ, origin, west, 10.0, 0);
+  EXPECT_EQ(hit.index, 1) << "with agent 0 skipped, its arms are skipped too";
+}
+
+// A wedge grown by g has every face moved out by g, the slope included.
+TEST(Geometry, GrownWedgeMovesEveryFace) {
+  Wedge w{0.0, 0.0, 0.0, 1.0, 0.0};
+  const double down[3] = {0, 0, -1};
+  const double above_slope[3] = {0.0, 0.1, 1.0};  // the slope y + z = 0 lies at z = -0.1 here
+  EXPECT_NEAR(ray_wedge(above_slope, down, w), 1.1, 1e-12);
+  w.grow = 0.01;
+  EXPECT_NEAR(ray_wedge(above_slope, down, w), 1.1 - 0.01 * std::sqrt(2.0), 1e-12);
+  const double beside[3] = {0.255, -0.2, -0.2}, west[3] = {-1, 0, 0};
+  EXPECT_NEAR(ray_wedge(beside, west, w), 0.0, 1e-12) << "the cap at x = 0.26 now holds the origin";
+}
+
 }  // namespace
 }  // namespace hns::physics

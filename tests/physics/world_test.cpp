@@ -311,25 +311,130 @@ TEST(WorldLock, ObjectsLockedAtTheEndOfAnEpisodeArePushableInTheNext) {
   EXPECT_GT(world.ramp_state(0).pos[1], ramp0.pos[1] + 0.1) << "the ramp moves again";
 }
 
+// The seeker faces a cube 0.17 m ahead (in view, within grab and lock range) and presses move, turn, grab
+// and lock throughout: nothing happens during preparation; the first step after it grabs and locks.
 TEST(WorldPrep, SeekersCannotActDuringPreparation) {
   WorldConfig config = test_config(0.4);
   config.horizon = 10;  // prep = steps 1..4
   World world(config, 1, 0);
-  world.reset_with_scene(open_scene({agent_at(1.0, 1.0)}, {agent_at(1.0, 4.0)}, {cube_at(1.5, 3.55)}));
+  world.reset_with_scene(open_scene({agent_at(1.0, 1.0)}, {agent_at(3.0, 4.0)}, {cube_at(3.0, 3.58)}));
   ASSERT_EQ(config.prep_steps(), 4);
   const AgentAction acts[2] = {move(10, 5), move(10, 5, 10, true, true)};
   for (int k = 0; k < 4; ++k) {
     EXPECT_TRUE(world.in_prep_phase());
+    ASSERT_EQ(world.object_visibility()[1], 1) << "the seeker sees the cube, step " << k + 1;
     world.step(acts);
+    EXPECT_EQ(world.agent_holding(1), -1) << "step " << k + 1;
+    EXPECT_FALSE(world.object_locked(0)) << "step " << k + 1;
   }
   EXPECT_GT(world.agent_state(0).pos[0], 2.0) << "the hider moves in prep";
-  EXPECT_NEAR(world.agent_state(1).pos[0], 1.0, 1e-6) << "the seeker does not";
+  EXPECT_NEAR(world.agent_state(1).pos[0], 3.0, 1e-6) << "the seeker does not";
   EXPECT_NEAR(world.agent_state(1).ang_vel, 0.0, 1e-6);
-  EXPECT_EQ(world.agent_holding(1), -1);
-  EXPECT_FALSE(world.object_locked(0));
   EXPECT_FALSE(world.in_prep_phase());
   world.step(acts);
-  EXPECT_GT(world.agent_state(1).vel[0], 3.0) << "after prep the seeker moves";
+  EXPECT_EQ(world.agent_holding(1), 0) << "after prep the same bits grab";
+  EXPECT_TRUE(world.object_locked(0)) << "and lock";
+  EXPECT_EQ(world.object_lock_team(0), int(Team::kSeeker));
+}
+
+// Ramps are objects after the boxes of the episode, not after the configured maximum: with 1 box of at most
+// 4, grabbing pulls the ramp and locking pins it.
+TEST(WorldGrab, RampGrabbedAndLockedWithFewerBoxesThanTheMaximum) {
+  WorldConfig config = test_config();
+  config.lock_ramps = true;
+  World world(config, 1, 0);
+  const Scene scene = open_scene({agent_at(3.0, 3.4)}, {}, {cube_at(1.0, 1.0)}, {ramp_at(3.0, 3.0)});
+  world.reset_with_scene(scene);
+  ASSERT_EQ(world.object_visibility()[1], 1) << "the agent faces the ramp's slope";
+  const AgentAction pull = move(5, 10, 5, true);  // backwards, along +y, holding
+  for (int k = 0; k < 5; ++k) world.step({&pull, 1});
+  EXPECT_EQ(world.agent_holding(0), 1);
+  EXPECT_GT(world.ramp_state(0).pos[1], 4.0) << "the ramp came along";
+  EXPECT_NEAR(world.box_state(0).pos[0], 1.0, 1e-6) << "the box did not";
+  // Lock it where it stands, then push it at full force from its slope side: it does not move.
+  world.reset_with_scene(scene, 1);
+  const AgentAction lock = move(5, 5, 5, false, true);
+  world.step({&lock, 1});
+  ASSERT_TRUE(world.object_locked(1));
+  const BodyState before = world.ramp_state(0);
+  const AgentAction push = move(5, 0, 5, false, true);
+  for (int k = 0; k < 10; ++k) world.step({&push, 1});
+  EXPECT_EQ(world.ramp_state(0).pos[1], before.pos[1]);
+  EXPECT_EQ(world.ramp_state(0).pos[0], before.pos[0]);
+}
+
+// Grab and lock reach a ramp through the cuboid of SPEC §3.3, half extents (0.2357, 0.25, 0.3536) about its
+// bounding-box centre: beside the ramp along its x axis, 0.485 m from its centre is in range, 0.490 m not
+// (a 0.25 m cube would reach both).
+TEST(WorldLock, RampReachIsTheSpecCuboid) {
+  WorldConfig config = test_config();
+  config.lock_ramps = true;
+  for (const double offset : {0.480, 0.490}) {
+    World world(config, 1, 0);
+    world.reset_with_scene(open_scene({agent_at(3.0 + offset, 3.0)}, {}, {}, {ramp_at(3.0, 3.0)}));
+    world.set_agent_pose(0, 3.0 + offset, 3.0, kAgentRadius, -M_PI / 2);  // faces -x, toward the ramp
+    world.update_visibility();
+    ASSERT_EQ(world.object_visibility()[0], 1);
+    const AgentAction lock = move(5, 5, 5, false, true);
+    world.step({&lock, 1});
+    EXPECT_EQ(world.object_locked(0), offset < 0.4857) << "agent " << offset << " m from the ramp's centre";
+  }
+}
+
+// The arms (SPEC §1.2) widen an agent to 0.36 m across its front: facing the gap (yaw 0) it cannot drive
+// through 0.33 m between two walls; turned by 90° (0.30 m across) it can.
+TEST(WorldMotion, ArmsWidenTheAgent) {
+  for (const double yaw : {0.0, M_PI / 2}) {
+    World world(test_config(), 1, 0);
+    Scene scene = open_scene({agent_at(3.0, 4.0)});
+    scene.wall_boxes.push_back(wall_at(3.0 - 0.165 - 1.0, 3.0, 1.0, 0.05));  // ends at x = 2.835
+    scene.wall_boxes.push_back(wall_at(3.0 + 0.165 + 1.0, 3.0, 1.0, 0.05));  // starts at x = 3.165
+    world.reset_with_scene(scene);
+    world.set_agent_pose(0, 3.0, 4.0, kAgentRadius, yaw);
+    const AgentAction act = move(5, 2);  // toward -y at a moderate force
+    for (int k = 0; k < 20; ++k) world.step({&act, 1});
+    if (yaw == 0.0) {
+      EXPECT_GT(world.agent_state(0).pos[1], 3.0) << "the arms catch on the walls";
+    } else {
+      EXPECT_LT(world.agent_state(0).pos[1], 2.0) << "sideways it slips through";
+    }
+    EXPECT_FALSE(world.unstable());
+  }
+}
+
+// An arm is part of its agent for rays: a ray that misses the body sphere but passes through an arm hits the
+// agent, and the agent's own arms never block its own rays.
+TEST(WorldVision, ArmsOccludeAndCountAsTheirAgent) {
+  World world(test_config(), 1, 0);
+  // Viewer (seeker) at (3, 5) facing -y; target hider at (3, 1); a second hider raised to z = 0.22 (as on a
+  // slope) at x = 2.83, turned by 30° so that its right arm reaches out to x = 2.98 at z = 0.17, across the
+  // line of sight at z = 0.15, which passes 0.17 m from its centre, clear of its body sphere.
+  world.reset_with_scene(open_scene({agent_at(3.0, 1.0), agent_at(2.83, 3.0)}, {agent_at(3.0, 5.0)}));
+  Occluders occ = world.occluders();
+  std::vector<Sphere> agents(occ.agents.begin(), occ.agents.end()), arms(occ.arms.begin(), occ.arms.end());
+  const BodyState v = world.agent_state(2);
+  for (const double yaw : {M_PI / 6, -M_PI / 6}) {
+    const double centre[3] = {2.83, 3.0, 0.22};
+    double arm[2][3];
+    arm_centres(centre, std::cos(yaw), std::sin(yaw), arm);
+    agents[1] = {centre[0], centre[1], centre[2], kAgentRadius};
+    arms[2] = {arm[0][0], arm[0][1], arm[0][2], kArmRadius};
+    arms[3] = {arm[1][0], arm[1][1], arm[1][2], kArmRadius};
+    const Occluders moved{occ.walls, occ.boxes, occ.ramps, agents, arms};
+    const bool blocked = yaw > 0;
+    EXPECT_EQ(visible(moved, 2, v.cos_yaw, v.sin_yaw, HitKind::kAgent, 0), !blocked) << "yaw " << yaw;
+    const double origin[3] = {3.0, 5.0, kAgentRadius}, down[3] = {0, -1, 0};
+    const RayHit hit = cast_ray(moved, origin, down, 10.0, 2);
+    EXPECT_EQ(hit.kind, HitKind::kAgent);
+    EXPECT_EQ(hit.index, blocked ? 1 : 0) << "an arm hit reports its agent";
+    // A ray from the viewer's centre through its own arm does not stop there.
+    double toward_arm[3] = {arms[4].cx - origin[0], arms[4].cy - origin[1], arms[4].cz - origin[2]};
+    const double len = std::sqrt(toward_arm[0] * toward_arm[0] + toward_arm[1] * toward_arm[1] +
+                                 toward_arm[2] * toward_arm[2]);
+    for (double& d : toward_arm) d /= len;
+    EXPECT_EQ(cast_ray(moved, origin, toward_arm, 10.0, 2).kind, HitKind::kNone);
+    EXPECT_EQ(cast_ray(moved, origin, toward_arm, 10.0, -1).kind, HitKind::kAgent) << "unless not skipped";
+  }
 }
 
 TEST(WorldEpisode, DoneAtHorizon) {
