@@ -436,7 +436,24 @@ void World::build_scene() {
     o.walls.push_back(g);
   }
 
+  // ODE keeps history in reused bodies and geoms that would make an episode depend on the ones before it
+  // (and a resumed run differ from an uninterrupted one): the simple space's geom order, which decides the
+  // order of contacts and so the solver's arithmetic (a moved geom that was clean jumps to the front: which
+  // ones were clean depends on what slept or was locked when the last episode ended), the velocity samples
+  // of the auto-disable average, and the force accumulators. All are put back to what a new world has.
+  auto restore_order = [&](const std::vector<dGeomID>& geoms) {
+    for (dGeomID g : geoms) {
+      dSpaceRemove(o.dynamic_space, g);
+      dSpaceAdd(o.dynamic_space, g);
+    }
+  };
+  restore_order(o.agent_geoms);
+  restore_order(o.box_geoms);
+  restore_order(o.ramp_geoms);
   auto place = [](dBodyID body, dGeomID geom, bool active, double x, double y, double z) {
+    dBodySetAutoDisableAverageSamplesCount(body, dBodyGetAutoDisableAverageSamplesCount(body));
+    dBodySetForce(body, 0, 0, 0);
+    dBodySetTorque(body, 0, 0, 0);
     dBodySetDynamic(body);
     dBodySetPosition(body, x, y, z);
     set_yaw(body, 0.0);
@@ -527,7 +544,9 @@ void World::substep(std::span<const double> forces) {
   // velocity after the step it keeps grab joints tight.
   auto damp = [dt](dBodyID body, double fx, double fy, double tz, double damp_xy, double damp_z,
                    double damp_yaw, double mass, double yaw_inertia) {
-    if (dBodyIsKinematic(body)) return;
+    // A sleeping body is left alone: ODE clears a body's force accumulators only when it steps it, so forces
+    // added while it sleeps would pile up and strike at once when it wakes.
+    if (dBodyIsKinematic(body) || !dBodyIsEnabled(body)) return;
     const dReal* v = dBodyGetLinearVel(body);
     const dReal* w = dBodyGetAngularVel(body);
     const double kxy = damp_xy / (mass + damp_xy * dt);

@@ -191,6 +191,7 @@ void Trainer::restart_envs() {
 IterationMetrics Trainer::iterate() {
   const Clock::time_point t0 = Clock::now();
   const int64_t agent_steps_before = agent_steps_;
+  const int64_t unstable_before = sim_->unstable_resets();
   IterationMetrics m;
   if (need_restart_) restart_envs();
   const int threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
@@ -218,7 +219,7 @@ IterationMetrics Trainer::iterate() {
   m.env_steps = env_steps_;
   m.value_mean = value_norm_.mean();
   m.value_std = value_norm_.std();
-  m.unstable_resets = sim_->unstable_resets();
+  m.unstable_resets = sim_->unstable_resets() - unstable_before;
   m.seconds = seconds_since(t0);
   m.t_other = std::max(0.0, m.seconds - m.t_simulate - m.t_observe - m.t_infer - m.t_learn);
   m.steps_per_s = m.seconds > 0 ? double(agent_steps_ - agent_steps_before) / m.seconds : 0.0;

@@ -68,7 +68,7 @@ struct IterationMetrics {
   // (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
   double t_targets = 0, t_backward = 0, t_optimizer = 0;
-  int64_t unstable_resets = 0;  // envs reset by numerical trouble since the start of this process
+  int64_t unstable_resets = 0;  // envs reset by numerical trouble during this iteration
 
   std::string to_json() const;  // one line, no newline
 };
