@@ -33,4 +33,23 @@ void write_chrome_trace(const std::string& path, const std::vector<batch::TraceE
 // Writes `text` to `path` atomically: a temporary file beside it, then rename. Throws on failure.
 void write_atomically(const std::string& path, const std::string& text);
 
+// Checks, before any work starts, that the file `path` given to `flag` can be written: it is not a folder,
+// its folder exists and takes a new file, and it is none of `inputs` (files the command reads). Throws
+// physics::ConfigError naming the flag and the reason.
+void check_output_path(const std::string& flag, const std::string& path,
+                       const std::vector<std::string>& inputs = {});
+
+// A seed given to `flag`: a decimal integer in [0, 2^64 - 1], nothing else (no sign, exponent or fraction).
+// Throws physics::ConfigError.
+uint64_t parse_seed(const std::string& flag, const std::string& text);
+
+// Refuses (physics::ConfigError, exit 2) work whose estimated memory exceeds what the machine has available
+// (MemAvailable), naming `what` (e.g. "--envs 100000") and both figures.
+void check_memory(const std::string& what, size_t bytes);
+
+// Worker threads a request really gets: the request, or the machine's hardware threads if fewer.
+int usable_threads(int requested);
+// "T threads" or, when the machine has fewer, "T threads requested, U available: U used".
+std::string threads_text(int requested);
+
 }  // namespace hns::tools

@@ -28,7 +28,8 @@ struct BenchOptions {
   int envs = 16;
   int steps = 1000;
   int threads = 1;
-  uint64_t seed = 1;
+  std::string seed_text = "1";
+  uint64_t seed = 1;  // parsed from seed_text
   std::optional<int> hiders, seekers, boxes, ramps, substeps;
   std::string json;
   std::string profile;
@@ -45,9 +46,12 @@ int run_bench(const BenchOptions& opt) {
   phys::apply_overrides(config.world, phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
   if (opt.substeps) config.world.physics.substeps = *opt.substeps;
   config.num_envs = opt.envs;
-  config.threads = opt.threads;
+  config.threads = usable_threads(opt.threads);
   config.seed = opt.seed;
   config.validate();
+  check_memory("--envs " + std::to_string(opt.envs), config.estimated_bytes());
+  if (!opt.json.empty()) check_output_path("--json", opt.json, {opt.profile});
+  if (!opt.profile.empty()) check_output_path("--profile", opt.profile, {opt.json});
 
   const int64_t profile_events = int64_t(opt.envs) * opt.steps * 4;
   if (!opt.profile.empty() && profile_events > kMaxProfileEvents) {
@@ -56,8 +60,8 @@ int run_bench(const BenchOptions& opt) {
                             " steps is invalid: a profiled run may record at most " +
                             std::to_string(kMaxProfileEvents / 4) + " env-steps; use fewer --steps");
   }
-  std::printf("hns bench: scene %s, %d envs x %d steps, %d thread%s, %d substeps\n", opt.scene.c_str(),
-              opt.envs, opt.steps, opt.threads, opt.threads == 1 ? "" : "s", config.world.physics.substeps);
+  std::printf("hns bench: scene %s, %d envs x %d steps, %s, %d substeps\n", opt.scene.c_str(), opt.envs,
+              opt.steps, threads_text(opt.threads).c_str(), config.world.physics.substeps);
   std::fflush(stdout);
   hns::batch::BatchSim sim(config);
   sim.set_tracing(!opt.profile.empty());
@@ -108,7 +112,7 @@ int run_bench(const BenchOptions& opt) {
     nlohmann::json j;
     j["scene"] = opt.scene;
     j["envs"] = opt.envs;
-    j["threads"] = opt.threads;
+    j["threads"] = config.threads;
     j["steps"] = opt.steps;
     j["seed"] = opt.seed;
     j["substeps"] = config.world.physics.substeps;
@@ -136,12 +140,12 @@ int run_bench(const BenchOptions& opt) {
 int run_nn_bench(const BenchOptions& opt) {
   hns::nn::NnBenchOptions o;
   o.model = opt.nn;
-  o.threads = opt.threads;
+  o.threads = usable_threads(opt.threads);
   o.seed = opt.seed;
-  std::printf(
-      "hns bench --nn %s: %d thread%s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
-      opt.nn.c_str(), opt.threads, opt.threads == 1 ? "" : "s", o.infer_agents, o.train_sequences,
-      o.train_steps);
+  if (!opt.json.empty()) check_output_path("--json", opt.json);
+  std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
+              opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences,
+              o.train_steps);
   std::fflush(stdout);
   const hns::nn::NnBenchResult r = hns::nn::run_nn_bench(o);
   std::printf("  parameters              %12zu (policy + value)\n", r.params);
@@ -184,7 +188,8 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--threads", opt->threads, "Worker threads")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
-  cmd->add_option("--seed", opt->seed, "Seed of scenes and actions")->capture_default_str();
+  cmd->add_option("--seed", opt->seed_text, "Seed of scenes and actions, 0 .. 2^64 - 1")
+      ->capture_default_str();
   cmd->add_option("--hiders", opt->hiders, "Fix the hider count")->check(CLI::Range(0, 32));
   cmd->add_option("--seekers", opt->seekers, "Fix the seeker count")->check(CLI::Range(0, 32));
   cmd->add_option("--boxes", opt->boxes, "Fix the box count")->check(CLI::Range(0, 32));
@@ -195,7 +200,10 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
                   "Write a per-phase Chrome trace (JSON) of a short run to this file");
   cmd->add_option("--nn", opt->nn, "Time the policy + value networks of this model instead of the simulator")
       ->check(CLI::IsMember({"paper", "small"}));
-  commands.push_back({cmd, [opt] { return opt->nn.empty() ? run_bench(*opt) : run_nn_bench(*opt); }});
+  commands.push_back({cmd, [opt] {
+                        opt->seed = parse_seed("--seed", opt->seed_text);
+                        return opt->nn.empty() ? run_bench(*opt) : run_nn_bench(*opt);
+                      }});
 }
 
 }  // namespace hns::tools

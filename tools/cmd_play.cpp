@@ -27,7 +27,8 @@ struct PlayOptions {
   bool random = false;
   std::string checkpoint;
   int episodes = 1;
-  uint64_t seed = 1;
+  std::string seed_text = "1";
+  uint64_t seed = 1;  // parsed from seed_text
   int envs = 1;
   int threads = 1;
   std::optional<int> hiders, seekers, boxes, ramps;
@@ -37,6 +38,7 @@ struct PlayOptions {
 int run_play(const PlayOptions& opt) {
   std::unique_ptr<ppo::Policy> policy;
   std::string scene = opt.scene.empty() ? "quadrant" : opt.scene;
+  check_output_path("--out", opt.out, {opt.checkpoint});
   phys::WorldConfig world = phys::world_preset(scene);
   if (!opt.checkpoint.empty()) {
     try {
@@ -60,8 +62,9 @@ int run_play(const PlayOptions& opt) {
                         phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
   // More envs than episodes would only play episodes nobody records.
   config.game.num_envs = std::min(opt.envs, opt.episodes);
-  config.game.threads = opt.threads;
+  config.game.threads = usable_threads(opt.threads);
   config.game.seed = opt.seed;
+  check_memory("--envs " + std::to_string(opt.envs), config.game.estimated_bytes());
   config.game.validate();
 
   std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, %s, seed %llu\n", scene.c_str(),
@@ -112,7 +115,8 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--episodes", opt->episodes, "Whole episodes to record")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
-  cmd->add_option("--seed", opt->seed, "Seed of scenes and actions")->capture_default_str();
+  cmd->add_option("--seed", opt->seed_text, "Seed of scenes and actions, 0 .. 2^64 - 1")
+      ->capture_default_str();
   cmd->add_option("--envs", opt->envs, "Envs played side by side")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
@@ -124,7 +128,10 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--boxes", opt->boxes, "Fix the box count")->check(CLI::Range(0, 32));
   cmd->add_option("--ramps", opt->ramps, "Fix the ramp count")->check(CLI::Range(0, 16));
   cmd->add_option("--out", opt->out, "Trajectory file to write")->required();
-  commands.push_back({cmd, [opt] { return run_play(*opt); }});
+  commands.push_back({cmd, [opt] {
+                        opt->seed = parse_seed("--seed", opt->seed_text);
+                        return run_play(*opt);
+                      }});
 }
 
 }  // namespace hns::tools

@@ -21,6 +21,7 @@ struct ReplayOptions {
 };
 
 int run_replay(const ReplayOptions& opt) {
+  check_output_path("--html", opt.html, {opt.file});
   // The whole file is checked here, so the page never has to show a half-read trajectory.
   std::string bytes;
   TrajectoryFile trajectory;

@@ -31,6 +31,9 @@ struct ReportOptions {
 int run_report(const ReportOptions& opt) {
   const fs::path dir(opt.dir);
   const fs::path metrics_path = dir / "metrics.jsonl";
+  check_output_path("--html", opt.html,
+                    {metrics_path.string(), (dir / "config.json").string(), (dir / "replay.traj").string(),
+                     (dir / "checkpoint.bin").string()});
   std::ifstream in(metrics_path);
   if (!in) {
     std::fprintf(stderr, "hns report: %s cannot be read (is %s a run folder of hns train?)\n",

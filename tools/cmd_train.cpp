@@ -8,7 +8,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <nlohmann/json.hpp>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -29,7 +31,7 @@ struct TrainOptions {
   std::string config_file;
   std::optional<std::string> scene, model;
   std::optional<int> iterations, threads, envs;
-  std::optional<uint64_t> seed;
+  std::optional<std::string> seed;
   std::vector<std::string> sets;
   std::string out;
   std::string resume;
@@ -65,25 +67,60 @@ std::string duration_text(double s) {
 }
 
 // Keeps the lines of metrics.jsonl up to `iteration` (a run stopped between writing a line and a checkpoint
-// repeats those iterations on resume).
+// repeats those iterations on resume). Only whole lines survive: the first line that is not a complete JSON
+// object with an integer "iteration" (one torn by a crash, cut anywhere) ends what is kept.
 void truncate_metrics(const std::string& path, int64_t iteration) {
   std::ifstream in(path);
   if (!in) return;
   std::string kept, line;
   while (std::getline(in, line)) {
-    const auto pos = line.find("\"iteration\": ");
-    if (pos == std::string::npos) continue;
-    long long it = 0;
-    try {
-      it = std::stoll(line.substr(pos + 13));
-    } catch (const std::exception&) {
-      break;  // a line cut short by a crash: drop it and what follows
-    }
-    if (it > iteration) break;
+    const nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
+    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
+        !row["iteration"].is_number_integer())
+      break;
+    if (row["iteration"].get<int64_t>() > iteration) break;
     kept += line + "\n";
   }
   in.close();
   write_atomically(path, kept);
+}
+
+// The files `hns train` writes into a run folder (`hns report` suggests report.html beside them).
+const std::set<std::string> kRunFiles = {"config.json", "metrics.jsonl", "checkpoint.bin", "replay.traj",
+                                         "report.html"};
+
+// The first entry of folder `dir` that hns did not write (its files and their temporaries), or "".
+std::string foreign_entry(const fs::path& dir) {
+  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
+    std::string name = e.path().filename().string();
+    if (name.size() > 4 && name.ends_with(".tmp")) name.resize(name.size() - 4);
+    if (!e.is_regular_file() || !kRunFiles.contains(name)) return e.path().filename().string();
+  }
+  return "";
+}
+
+// Refuses (ConfigError) a --out folder that is not a new, empty or hns run folder: hns only ever removes
+// or overwrites what it wrote itself.
+void check_run_folder(const std::string& dir) {
+  std::error_code ec;
+  if (!fs::exists(dir, ec)) return;
+  if (!fs::is_directory(dir, ec)) throw physics::ConfigError("--out " + dir + " exists and is not a folder");
+  const std::string foreign = foreign_entry(dir);
+  if (!foreign.empty()) {
+    throw physics::ConfigError("--out " + dir + " holds '" + foreign +
+                               "', which hns train did not write: give a new or empty folder (hns never "
+                               "removes files it did not write, --overwrite included)");
+  }
+  const fs::path config = fs::path(dir) / "config.json";
+  if (fs::exists(config, ec)) {
+    ppo::TrainConfig c;
+    try {
+      c.merge_json(read_text(config.string(), "--out: run config"), config.string());
+    } catch (const physics::ConfigError& e) {
+      throw physics::ConfigError("--out " + dir + ": its config.json is not an hns run config (" + e.what() +
+                                 "): give a new or empty folder");
+    }
+  }
 }
 
 // Records `episodes` episodes with the trainer's current policy into `path` (atomically), for the report.
@@ -136,14 +173,21 @@ int run_train(const TrainOptions& opt) {
   if (opt.iterations) cfg.iterations = *opt.iterations;
   if (opt.threads) cfg.threads = *opt.threads;
   if (opt.envs) cfg.envs = *opt.envs;
-  if (opt.seed) cfg.seed = *opt.seed;
+  if (opt.seed) cfg.seed = parse_seed("--seed", *opt.seed);
   cfg.validate();
+  check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model",
+               cfg.estimated_bytes());
 
   if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
+  if (!opt.profile.empty()) {
+    check_output_path("--profile", opt.profile,
+                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string()});
+  }
   if (!resume) {
+    check_run_folder(dir);
     // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
     // (a NaN or a crash in its first iterations) cannot be resumed, so the same command starts it over.
     if (fs::exists(ckpt) && !opt.overwrite) {
@@ -156,9 +200,10 @@ int run_train(const TrainOptions& opt) {
           dir.c_str());
     }
     fs::create_directories(dir);
-    fs::remove(ckpt);
-    fs::remove(metrics_path);
-    fs::remove(replay_path);
+    for (const std::string& f : {ckpt, metrics_path, replay_path}) {
+      fs::remove(f);
+      fs::remove(f + ".tmp");
+    }
   }
 
   ppo::Trainer trainer(cfg);
@@ -176,9 +221,10 @@ int run_train(const TrainOptions& opt) {
   const batch::Layout& L = trainer.sim().layout();
   std::printf(
       "hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
-      "%d epochs x %d minibatches, seed %llu\n",
+      "%d epochs x %d minibatches, seed %llu, %s\n",
       cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
-      cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed));
+      cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed),
+      threads_text(cfg.threads).c_str());
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
                 static_cast<long long>(trainer.iteration()));
@@ -196,9 +242,15 @@ int run_train(const TrainOptions& opt) {
     trainer.set_tracing(false);
     const std::vector<batch::TraceEvent> events = trainer.take_trace();
     if (events.empty()) return;
-    write_chrome_trace(opt.profile, events);
-    std::printf("  wrote %s (%zu events; open it in chrome://tracing or ui.perfetto.dev)\n",
-                opt.profile.c_str(), events.size());
+    // A profile that cannot be written costs the profile, never the run.
+    try {
+      write_chrome_trace(opt.profile, events);
+      std::printf("  wrote %s (%zu events; open it in chrome://tracing or ui.perfetto.dev)\n",
+                  opt.profile.c_str(), events.size());
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "hns train: warning: could not write the profile %s: %s (training goes on)\n",
+                   opt.profile.c_str(), e.what());
+    }
   };
 
   g_stop.store(false);
@@ -310,7 +362,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   sub->add_option("--scene", opt->scene, "quadrant | full | empty | lockbox");
   sub->add_option("--model", opt->model, "small | paper");
   sub->add_option("--iterations", opt->iterations, "Total iterations of the run");
-  sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling");
+  sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling, 0 .. 2^64 - 1");
   sub->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
   sub->add_option("--envs", opt->envs, "Game instances stepped together");
   sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");

@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 
 #include <iostream>
+#include <new>
 #include <vector>
 
 #include "cli.hpp"
@@ -18,6 +19,17 @@ int main(int argc, char** argv) {
   hns::tools::add_train_command(app, commands);
   hns::tools::add_report_command(app, commands);
 
+  // An unknown command gets named (CLI11 would only say that a subcommand is required).
+  if (argc > 1 && argv[1][0] != '-') {
+    bool known = false;
+    for (const hns::tools::Command& c : commands) known = known || c.app->get_name() == argv[1];
+    if (!known) {
+      std::cerr << "hns: unknown command '" << argv[1] << "': use one of";
+      for (const hns::tools::Command& c : commands) std::cerr << " " << c.app->get_name();
+      std::cerr << " (hns --help lists them)\n";
+      return 2;
+    }
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -31,6 +43,9 @@ int main(int argc, char** argv) {
   } catch (const hns::physics::ConfigError& e) {
     std::cerr << "hns: bad configuration: " << e.what() << "\n";
     return 2;
+  } catch (const std::bad_alloc&) {
+    std::cerr << "hns: error: out of memory (use fewer envs, a smaller model or a bigger machine)\n";
+    return 1;
   } catch (const std::exception& e) {
     std::cerr << "hns: error: " << e.what() << "\n";
     return 1;

@@ -23,6 +23,8 @@ namespace hns::batch {
 
 using physics::AgentAction;
 
+struct BatchConfig;
+
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
   int num_envs = 64;
@@ -31,6 +33,9 @@ struct BatchConfig {
   int envs_per_task = 4;  // fixed work partition, independent of the thread count
   // Throws physics::ConfigError naming the first bad field.
   void validate() const;
+  // Estimated memory of a BatchSim of this config, bytes: its state plus each env's world (ODE bodies,
+  // geoms, solver scratch), from measurements (within about 25 %).
+  size_t estimated_bytes() const;
 };
 
 // Per-env sizes of every tensor, fixed per batch by the config's maxima.
@@ -49,6 +54,11 @@ struct Layout {
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
   static constexpr int kLidar = 30;
   static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
+
+  // The sizes of a batch of this config.
+  static Layout of(const BatchConfig& config);
+  // Bytes of BatchState per env.
+  size_t state_bytes_per_env() const;
 };
 
 // Every per-env field of the batch: X(type, name, elements per env, doc). Env index outermost; one

@@ -135,10 +135,11 @@ struct Approach {
     const F qx = F(mx) - b * r.dx, qy = F(my) - b * r.dy, qz = F(mz) - b * r.dz;
     q2 = qx * qx + qy * qy + qz * qz;
   }
-  // Every ray misses the ball of this radius about the point (the origin outside it).
-  bool all_miss(float radius) const {
+  // Every ray misses the ball of this radius about the point (the origin outside it): the ball lies behind
+  // the ray, off its line, or past its end (no point of it is nearer than |b| - radius along the ray).
+  bool all_miss(float radius, F max_t) const {
     const F zero(0.0f), r2(radius * radius);
-    return m2 > radius * radius && Ops<F>::all((b > zero) | (q2 > r2));
+    return m2 > radius * radius && Ops<F>::all((b > zero) | (q2 > r2) | (zero - b - F(radius) > max_t));
   }
 };
 
@@ -191,7 +192,7 @@ Nearest<F> cast_block(const ShapesView& s, const RayFan& fan, int i) {
     const int first = body * per;
     const Approach<F> centre(fan, r, s.sphere_cx[first], s.sphere_cy[first], s.sphere_cz[first]);
     best.keep(sphere_entry(centre, r, s.sphere_r[first]), id);
-    if (per == 1 || (s.body_reach > 0.0f && centre.all_miss(s.body_reach))) continue;
+    if (per == 1 || (s.body_reach > 0.0f && centre.all_miss(s.body_reach, r.max_t))) continue;
     for (int k = first + 1; k < first + per && k < s.live_spheres; ++k) {
       const Approach<F> part(fan, r, s.sphere_cx[k], s.sphere_cy[k], s.sphere_cz[k]);
       best.keep(sphere_entry(part, r, s.sphere_r[k]), id);

@@ -2,6 +2,9 @@
 
 #include <ode/ode.h>
 
+#include <cstdio>
+#include <cstdlib>
+
 #include <mutex>
 
 namespace hns::physics {
@@ -13,9 +16,40 @@ thread_local bool t_thread_ready = false;
 std::once_flag g_ode_init;
 }  // namespace
 
+namespace {
+// ODE has no way to report a failed allocation and would crash on the null pointer: hns ends the process
+// with a message and exit status 1 instead (never a signal).
+[[noreturn]] void ode_out_of_memory(size_t bytes) {
+  std::fprintf(stderr,
+               "hns: error: out of memory inside the physics engine (ODE asked for %zu bytes); use fewer "
+               "envs or a bigger machine\n",
+               bytes);
+  std::fflush(stderr);
+  std::_Exit(1);
+}
+void* ode_alloc(dsizeint bytes) {
+  void* p = std::malloc(bytes);
+  if (p == nullptr && bytes > 0) ode_out_of_memory(bytes);
+  return p;
+}
+void* ode_realloc(void* ptr, dsizeint, dsizeint bytes) {
+  void* p = std::realloc(ptr, bytes);
+  if (p == nullptr && bytes > 0) ode_out_of_memory(bytes);
+  return p;
+}
+void ode_free(void* ptr, dsizeint) {
+  std::free(ptr);
+}
+}  // namespace
+
 void ensure_ode_thread() {
   if (t_thread_ready) return;
-  std::call_once(g_ode_init, [] { dInitODE2(0); });
+  std::call_once(g_ode_init, [] {
+    dSetAllocHandler(ode_alloc);
+    dSetReallocHandler(ode_realloc);
+    dSetFreeHandler(ode_free);
+    dInitODE2(0);
+  });
   dAllocateODEDataForThread(dAllocateMaskAll);
   t_thread_ready = true;
 }

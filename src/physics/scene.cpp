@@ -388,7 +388,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
 
-  // Walls and doors. out.walls receives every piece first; dropped outer walls are removed after marking.
+  // Walls and doors. out.walls receives every piece first; dropped outer walls are removed before marking.
   const int door = config.door_size;
   switch (config.layout) {
     case Layout::kEmpty:
@@ -656,6 +656,27 @@ void SceneConfig::validate() const {
            hiders.max + seekers.max + boxes.max + ramps.max,
            "the objects need " + std::to_string(arena_need) + " grid cells but the arena has " +
                std::to_string(arena_free));
+  }
+}
+
+void SceneConfig::check_placeable() const {
+  validate();
+  SceneConfig most = *this;
+  most.hiders = {hiders.max, hiders.max};
+  most.seekers = {seekers.max, seekers.max};
+  most.boxes = {boxes.max, boxes.max};
+  most.ramps = {ramps.max, ramps.max};
+  most.rooms = {rooms.max, rooms.max};
+  const int elongated_hi = std::min(elongated.max, boxes.max);
+  Scene scene;
+  for (const int elongated_count : {std::min(elongated.min, elongated_hi), elongated_hi}) {
+    most.elongated = {elongated_count, elongated_count};
+    Rng rng(0x5CE7E5ULL, uint64_t(elongated_count), 0);
+    try {
+      generate_scene(most, rng, scene);
+    } catch (const std::runtime_error& e) {
+      throw ConfigError(std::string("the counts cannot be placed: ") + e.what());
+    }
   }
 }
 

@@ -66,6 +66,11 @@ struct SceneConfig {
   static SceneConfig empty();
   // Throws ConfigError naming the first bad field.
   void validate() const;
+  // Throws ConfigError if the generator cannot build a scene with every count at its maximum (with the
+  // fewest and with the most elongated boxes) within max_regenerations rebuilds: counts that pass
+  // validate()'s area bound but not random placement (12 cubes in the quadrant room). Costs a few scene
+  // generations: call it once per run, not per world.
+  void check_placeable() const;
 };
 
 // A wall between grid cells (x1, y1) and (x2, y2), inclusive, sharing x or y.

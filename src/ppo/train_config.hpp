@@ -47,6 +47,9 @@ struct TrainConfig {
 
   // Throws physics::ConfigError naming the field, its value and what is allowed.
   void validate() const;
+  // Estimated peak memory of a Trainer of this config, bytes: the simulator, the rollout buffers and the
+  // networks' activations per buffer row (fitted to measured resident memory; within about 25 %).
+  size_t estimated_bytes() const;
   // The world this config trains on (preset with the horizon override).
   physics::WorldConfig world() const;
   int rollout_steps() const { return world().horizon * episodes_per_iteration; }

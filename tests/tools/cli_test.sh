@@ -70,7 +70,25 @@ else
 fi
 expect_fail 2 "profile" bench --envs 100000 --steps 1000 --profile "$tmp/huge.json"
 # An unwritable JSON path fails with status 1 and says so.
-expect_fail 1 "cannot write" bench --envs 1 --steps 1 --json "$tmp/missing-dir/out.json"
+# Outputs are checked before any work: a missing folder, an output that is an input, a folder as a file.
+expect_fail 2 "missing-dir does not exist" bench --envs 1 --steps 1 --json "$tmp/missing-dir/out.json"
+expect_fail 2 "is a folder" bench --envs 1 --steps 1 --json "$tmp"
+# Seeds are whole numbers in [0, 2^64 - 1]; counts the generator can never place are refused up front;
+# memory that cannot exist is refused with the figure; an unknown command is named; threads beyond the
+# machine are reported as what is used.
+expect_fail 2 "seed = -1" bench --seed -1 --steps 1
+expect_fail 2 "seed = 1e23" bench --seed 1e23 --steps 1
+expect_fail 2 "seed = 18446744073709551616" bench --seed 18446744073709551616 --steps 1
+expect_fail 2 "cannot be placed.*12 boxes" bench --scene quadrant --boxes 12 --steps 1
+expect_fail 2 "envs 1000000 needs about .* GB of memory" bench --envs 1000000 --steps 1
+expect_fail 2 "unknown command 'frobnicate'" frobnicate
+if "$hns" bench --envs 1 --steps 1 --threads 64 --json "$tmp/t.json" 2>&1 | grep -q "64 threads requested" &&
+   ! grep -q '"threads": 64' "$tmp/t.json"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: bench --threads 64 must report the threads it uses"
+fi
 
 # play / replay: bad flags and files exit 2 naming the problem; nothing is half-written.
 expect_fail 2 "scene" play --scene nowhere --out "$tmp/x.traj"
@@ -80,8 +98,10 @@ expect_fail 2 "out" play --scene quadrant
 expect_fail 2 "hiders" play --hiders 0 --seekers 0 --out "$tmp/x.traj"
 expect_fail 2 "cannot open checkpoint" play --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
 expect_fail 2 "excludes" play --random --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
-expect_fail 1 "cannot write" play --out "$tmp/missing-dir/x.traj"
+expect_fail 2 "missing-dir does not exist" play --out "$tmp/missing-dir/x.traj"
+expect_fail 2 "seed = -1" play --seed -1 --out "$tmp/x.traj"
 expect_fail 2 "html" replay "$tmp/x.traj"
+expect_fail 2 "is also an input" replay "$tmp/x.traj" --html "$tmp/x.traj"
 expect_fail 2 "cannot read" replay "$tmp/nothing.traj" --html "$tmp/x.html"
 printf 'not a trajectory at all' >"$tmp/garbage.traj"
 expect_fail 2 "bad trajectory file.*not an hns trajectory" replay "$tmp/garbage.traj" --html "$tmp/x.html"
@@ -130,6 +150,21 @@ else
   echo "FAIL: train + resume run"; cat "$tmp/log"
 fi
 expect_fail 2 "already holds a run" train --config "$tmp/train.json" --iterations 2 --out "$tmp/run"
+# A folder with files hns did not write is refused, --overwrite included, and nothing in it is touched.
+mkdir -p "$tmp/mine" && echo "my notes" >"$tmp/mine/notes.txt" && echo '{"not": "hns"}' >"$tmp/mine/metrics.jsonl"
+expect_fail 2 "holds 'notes.txt', which hns train did not write" train --config "$tmp/train.json" --out "$tmp/mine"
+expect_fail 2 "notes.txt" train --config "$tmp/train.json" --out "$tmp/mine" --overwrite
+mkdir -p "$tmp/cfgonly" && echo '{"colour": "red"}' >"$tmp/cfgonly/config.json"
+expect_fail 2 "not an hns run config" train --config "$tmp/train.json" --out "$tmp/cfgonly"
+if [ "$(cat "$tmp/mine/notes.txt")" = "my notes" ] && grep -q '"not"' "$tmp/mine/metrics.jsonl" &&
+   grep -q colour "$tmp/cfgonly/config.json"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: a refused --out folder was changed"
+fi
+expect_fail 2 "seed = -1" train --config "$tmp/train.json" --seed -1 --out "$tmp/neg"
+expect_fail 2 "is also an input" train --resume "$tmp/run" --iterations 3 --profile "$tmp/run/metrics.jsonl"
 expect_fail 2 "seed: checkpoint has 1" train --resume "$tmp/run" --seed 5
 cp "$tmp/run/checkpoint.bin" "$tmp/good.bin"
 printf 'x' | dd of="$tmp/run/checkpoint.bin" bs=1 seek=200 conv=notrunc status=none
@@ -137,6 +172,19 @@ expect_fail 2 "corrupt" train --resume "$tmp/run" --iterations 4
 cmp -s "$tmp/run/checkpoint.bin" "$tmp/good.bin" && { failed=$((failed + 1)); echo "FAIL: corruption not applied"; }
 # play --checkpoint records with the trained policy (the run's scene); report renders a run folder.
 cp "$tmp/good.bin" "$tmp/run/checkpoint.bin"
+# A torn last line of metrics.jsonl (iteration 3, cut inside a number) is dropped on resume: only whole
+# lines survive (iterations 1, 2, then the resumed 4), and the report renders the resumed run.
+cp -r "$tmp/run" "$tmp/torn"
+head -c -40 "$tmp/torn/metrics.jsonl" >"$tmp/torn/m" && mv "$tmp/torn/m" "$tmp/torn/metrics.jsonl"
+if "$hns" train --resume "$tmp/torn" --iterations 4 >"$tmp/log" 2>&1 &&
+   [ "$(python3 -c "import json,sys; print([json.loads(l)['iteration'] for l in open(sys.argv[1])])" \
+        "$tmp/torn/metrics.jsonl")" = "[1, 2, 4]" ] &&
+   "$hns" report "$tmp/torn" --html "$tmp/torn.html" >>"$tmp/log" 2>&1; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: resume after a torn metrics line"; cat "$tmp/log"; cat "$tmp/torn/metrics.jsonl"
+fi
 if "$hns" play --checkpoint "$tmp/run/checkpoint.bin" --episodes 1 --out "$tmp/p.traj" >"$tmp/log" 2>&1 &&
    grep -q "scene lockbox" "$tmp/log" && grep -q "checkpoint's policy" "$tmp/log" &&
    "$hns" report "$tmp/run" --html "$tmp/report.html" >>"$tmp/log" 2>&1 && grep -q 'id="hns-status"' "$tmp/report.html"; then
