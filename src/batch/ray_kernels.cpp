@@ -122,40 +122,53 @@ F ray_wedge(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float c
   return in.entry();
 }
 
-// How the rays pass a point (a sphere's centre): m = origin - point, b = m·d (negative while the point is
-// ahead), q2 = |q|², q = m - b·d the point's offset from the ray's line.
+// How the rays pass a point (a sphere's centre): m = origin - point (the same for every ray), b = m·d per ray
+// (negative while the point is ahead).
 template <class F>
 struct Approach {
-  float m2;
-  F b, q2;
-  Approach(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float cz) {
-    const float mx = fan.ox - cx, my = fan.oy - cy, mz = fan.oz - cz;
-    m2 = mx * mx + my * my + mz * mz;
+  float mx, my, mz, m2;
+  F b;
+  Approach(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float cz)
+      : mx(fan.ox - cx), my(fan.oy - cy), mz(fan.oz - cz), m2(mx * mx + my * my + mz * mz) {
     b = F(mx) * r.dx + F(my) * r.dy + F(mz) * r.dz;
-    const F qx = F(mx) - b * r.dx, qy = F(my) - b * r.dy, qz = F(mz) - b * r.dz;
-    q2 = qx * qx + qy * qy + qz * qz;
   }
   // Every ray misses the ball of this radius about the point (the origin outside it): the ball lies behind
-  // the ray, off its line, or past its end (no point of it is nearer than |b| - radius along the ray).
+  // the ray, off its line (b² < |m|² - radius²), or past its end (no point of it nearer than -b - radius).
   bool all_miss(float radius, F max_t) const {
-    const F zero(0.0f), r2(radius * radius);
-    return m2 > radius * radius && Ops<F>::all((b > zero) | (q2 > r2) | (zero - b - F(radius) > max_t));
+    const F zero(0.0f);
+    const F off_line = b * b - F(m2 - radius * radius);
+    return m2 > radius * radius &&
+           Ops<F>::all((b > zero) | (off_line < zero) | (zero - b - F(radius) > max_t));
   }
 };
 
-// Entry distance into a sphere about the approach's point (0 from inside), or kNoHitT. The discriminant is
-// r² - |q|²: unlike b² - (|m|² - r²) it does not cancel for a far sphere, so a ray that grazes an arm's top
-// (at exactly its agent's centre height, where the lidar rays of an agent on the same floor run) is decided
-// to within about 1e-6 m, not 1e-3 m.
+// Entry distance into a sphere of `radius` about the approach's point (0 from inside), or kNoHitT, for a
+// discriminant disc (negative: the line misses).
 template <class F>
-F sphere_entry(const Approach<F>& a, const RayBlock<F>& r, float radius) {
+F sphere_entry(const Approach<F>& a, const RayBlock<F>& r, float radius, F disc) {
   using O = Ops<F>;
   if (a.m2 <= radius * radius) return F(0.0f);  // the origin is inside
   const F zero(0.0f);
-  const F disc = F(radius * radius) - a.q2;
   const F t = zero - a.b - O::sqrt(O::max(disc, zero));
   const auto miss = (a.b > zero) | (disc < zero) | (t > r.max_t);
   return O::select(miss, F(kNoHitT), t);
+}
+
+// A body sphere: disc = b² - (|m|² - r²), cheap, with a rounding error that grows with |m|² (about 1e-5 m²
+// at 8 m): the rays that graze a body sphere are rare and fall in the grazing band.
+template <class F>
+F body_sphere_entry(const Approach<F>& a, const RayBlock<F>& r, float radius) {
+  return sphere_entry(a, r, radius, a.b * a.b - F(a.m2 - radius * radius));
+}
+
+// An arm: disc = r² - |q|², q = m - b·d the centre's offset from the ray's line, which does not cancel for
+// a far sphere. It must not: an arm's top lies exactly at its agent's centre height, where the lidar rays of
+// an agent on the same floor run, so those rays graze it all the time; this decides them to about 1e-6 m,
+// the cheap form to 1e-3 m.
+template <class F>
+F arm_sphere_entry(const Approach<F>& a, const RayBlock<F>& r, float radius) {
+  const F qx = F(a.mx) - a.b * r.dx, qy = F(a.my) - a.b * r.dy, qz = F(a.mz) - a.b * r.dz;
+  return sphere_entry(a, r, radius, F(radius * radius) - (qx * qx + qy * qy + qz * qz));
 }
 
 // The nearest hit per lane so far; ids kept as floats (exact below 2^24) so one select moves both.
@@ -191,11 +204,11 @@ Nearest<F> cast_block(const ShapesView& s, const RayFan& fan, int i) {
     if (id == fan.skip_id) continue;
     const int first = body * per;
     const Approach<F> centre(fan, r, s.sphere_cx[first], s.sphere_cy[first], s.sphere_cz[first]);
-    best.keep(sphere_entry(centre, r, s.sphere_r[first]), id);
+    best.keep(body_sphere_entry(centre, r, s.sphere_r[first]), id);
     if (per == 1 || (s.body_reach > 0.0f && centre.all_miss(s.body_reach, r.max_t))) continue;
     for (int k = first + 1; k < first + per && k < s.live_spheres; ++k) {
       const Approach<F> part(fan, r, s.sphere_cx[k], s.sphere_cy[k], s.sphere_cz[k]);
-      best.keep(sphere_entry(part, r, s.sphere_r[k]), id);
+      best.keep(arm_sphere_entry(part, r, s.sphere_r[k]), id);
     }
   }
   return best;
