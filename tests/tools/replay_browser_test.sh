@@ -132,6 +132,19 @@ for png in replay_full.png replay_quadrant.png; do
     fail "screenshot $png missing or not a PNG"
   fi
 done
+# The agent-step axis reads whole numbers right: ticks at 200k ... 800k are labelled so, not "2k ... 8k".
+mkdir -p "$tmp/axis"
+for i in 0 1 2 3 4; do
+  echo "{\"iteration\": $((i + 1)), \"agent_steps\": $((i * 200000)), \"hider_reward\": 0.$i, \"seeker_reward\": -0.$i}"
+done >"$tmp/axis/metrics.jsonl"
+if "$hns" report "$tmp/axis" --html "$tmp/axis.html" >"$tmp/log" 2>&1; then
+  labels="$(attr xlabels "$(status "$tmp/axis.html" "")")"
+  [ "$labels" = "0 200k 400k 600k 800k" ] && pass || fail "agent-step axis labels: '$labels'"
+else
+  cat "$tmp/log"
+  fail "could not report the axis run"
+fi
+
 echo "screenshots: $shots/replay_full.png $shots/replay_quadrant.png $shots/report.png"
 
 echo "$passed passed, $failed failed"
