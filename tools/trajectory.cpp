@@ -107,6 +107,21 @@ std::string file_chunk(const TrajectoryFile& meta, int episodes) {
   return make_chunk(std::move(h), "");
 }
 
+}  // namespace
+
+std::string trajectory_checksum(std::string_view payload) {
+  uint64_t h = 0xcbf29ce484222325ULL;
+  for (const char c : payload) {
+    h ^= static_cast<unsigned char>(c);
+    h *= 0x100000001b3ULL;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+namespace {
+
 std::string episode_chunk(const TrajectoryEpisode& ep) {
   json h;
   h["kind"] = "episode";
@@ -153,6 +168,7 @@ std::string episode_chunk(const TrajectoryEpisode& ep) {
   });
   payload.resize(align8(payload.size()), '\0');
   h["blocks"] = std::move(blocks);
+  h["payload_fnv1a64"] = trajectory_checksum(payload);
   return make_chunk(std::move(h), payload);
 }
 
@@ -305,14 +321,21 @@ void check_values(const std::vector<T>& data, int64_t per_frame, const std::stri
   }
 }
 
-TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std::string& where) {
+TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std::string& where, int version) {
   const Fields f(c.header, where);
   if (!c.header.contains("kind") || c.header["kind"] != "episode") {
     f.fail("kind", "expected \"episode\"" + (c.header.contains("kind") ? f.got(c.header["kind"]) : ""));
   }
-  if (f.integer("version", 0, 1 << 30) != kTrajectoryVersion) {
-    f.fail("version",
-           "this hns reads version " + std::to_string(kTrajectoryVersion) + f.got(c.header["version"]));
+  if (f.integer("version", 0, 1 << 30) != version) {
+    f.fail("version", "the file header says version " + std::to_string(version) + f.got(c.header["version"]));
+  }
+  if (version >= 2) {
+    const std::string stored = f.string("payload_fnv1a64");
+    const std::string actual = trajectory_checksum(bytes.substr(c.payload_pos, c.payload_bytes));
+    if (stored != actual) {
+      f.fail("payload_fnv1a64", "the payload's checksum is " + actual + ", the header says " + stored +
+                                    " (a corrupt file)");
+    }
   }
   TrajectoryEpisode ep;
   ep.scene = f.string("scene");
@@ -391,13 +414,25 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     if (size > 0) std::memcpy(data.data(), payload.data() + offset, size);
   });
 
-  // Values: finite poses and rewards, flags 0/1, indices in range.
+  // Values: poses and rewards finite and within physical bounds, flags 0/1, indices in range.
   const int64_t a = ep.num_agents(), o = ep.num_objects();
-  auto finite = [](float v) -> const char* { return std::isfinite(v) ? nullptr : "a finite number"; };
   auto flag = [](uint8_t v) -> const char* { return v <= 1 ? nullptr : "0 or 1"; };
-  check_values(ep.agent_pose, a * 4, where, "agent_pose", finite);
-  check_values(ep.box_pose, int64_t(ep.num_boxes) * 4, where, "box_pose", finite);
-  check_values(ep.ramp_pose, int64_t(ep.num_ramps) * 4, where, "ramp_pose", finite);
+  // Each pose is (x, y, z, yaw): the element index within a frame says which.
+  auto check_poses = [&](const std::vector<float>& poses, int64_t bodies, const char* name) {
+    static const char* const kExpected[4] = {"a finite x within ±200 m", "a finite y within ±200 m",
+                                             "a finite z within ±100 m", "a finite yaw within ±4 rad"};
+    const double bounds[4] = {kTrajectoryMaxXY, kTrajectoryMaxXY, kTrajectoryMaxZ, kTrajectoryMaxYaw};
+    for (size_t i = 0; i < poses.size(); ++i) {
+      if (std::abs(poses[i]) <= bounds[i % 4]) continue;
+      std::ostringstream msg;
+      msg << where << ": block \"" << name << "\": frame " << i / (bodies * 4) << ", element "
+          << i % (bodies * 4) << ": value " << poses[i] << ", expected " << kExpected[i % 4];
+      throw TrajectoryError(msg.str());
+    }
+  };
+  check_poses(ep.agent_pose, a, "agent_pose");
+  check_poses(ep.box_pose, ep.num_boxes, "box_pose");
+  check_poses(ep.ramp_pose, ep.num_ramps, "ramp_pose");
   check_values(ep.object_lock, o, where, "object_lock", [](uint8_t v) -> const char* {
     return v <= 2 ? nullptr : "0 (free), 1 (hiders) or 2 (seekers)";
   });
@@ -408,7 +443,9 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
   check_values(ep.vis_agents, a * a, where, "vis_agents", flag);
   check_values(ep.vis_boxes, a * ep.num_boxes, where, "vis_boxes", flag);
   check_values(ep.vis_ramps, a * ep.num_ramps, where, "vis_ramps", flag);
-  check_values(ep.reward, a, where, "reward", finite);
+  check_values(ep.reward, a, where, "reward", [](float v) -> const char* {
+    return std::abs(v) <= kTrajectoryMaxReward ? nullptr : "a finite number within ±10000";
+  });
   check_values(ep.prep, 1, where, "prep", flag);
   for (size_t i = 0; i < ep.action.size(); ++i) {
     const int field = int(i % kActionFields);
@@ -465,10 +502,15 @@ TrajectoryFile decode_trajectory(std::string_view bytes) {
                          (head.header.contains("format") ? f.got(head.header["format"]) : ""));
   }
   const int64_t version = f.integer("version", 0, 1 << 30);
-  if (version != kTrajectoryVersion) {
-    f.fail("version", "this hns reads version " + std::to_string(kTrajectoryVersion) + ", got " +
+  if (version != kTrajectoryVersion && version != 1) {
+    f.fail("version", "this hns reads versions 1 and " + std::to_string(kTrajectoryVersion) + ", got " +
                           std::to_string(version) +
                           (version > kTrajectoryVersion ? " (a newer hns wrote it)" : ""));
+  }
+  file.version = int(version);
+  if (version == 1) {
+    file.warnings.push_back("a version 1 file: its episodes carry no checksum, so corruption inside their "
+                            "payload can only be caught by the range checks");
   }
   const int64_t episodes = f.integer("episodes", 0, 1 << 24);
   file.created_by = f.string("created_by");
@@ -481,7 +523,8 @@ TrajectoryFile decode_trajectory(std::string_view bytes) {
     const std::string what = "episode " + std::to_string(e);
     const uint64_t start = pos;
     const Chunk c = read_chunk(bytes, pos, what);
-    file.episodes.push_back(read_episode(bytes, c, "byte " + std::to_string(start) + " (" + what + ")"));
+    file.episodes.push_back(
+        read_episode(bytes, c, "byte " + std::to_string(start) + " (" + what + ")", int(version)));
   }
   if (pos != bytes.size()) {
     throw TrajectoryError("byte " + std::to_string(pos) + ": " + std::to_string(bytes.size() - pos) +

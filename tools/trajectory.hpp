@@ -18,7 +18,13 @@
 
 namespace hns::tools {
 
-inline constexpr int kTrajectoryVersion = 1;
+inline constexpr int kTrajectoryVersion = 2;  // 2: episodes carry a checksum of their payload (1 is still read)
+// Bounds of the physically meaningful values a reader accepts (the simulator resets a world whose bodies leave
+// the first two, SPEC-wide).
+inline constexpr double kTrajectoryMaxXY = 200.0;     // m, |x| and |y| of every body
+inline constexpr double kTrajectoryMaxZ = 100.0;      // m, |z|
+inline constexpr double kTrajectoryMaxYaw = 4.0;      // rad, |yaw| (recorded in [-π, π])
+inline constexpr double kTrajectoryMaxReward = 1e4;   // |reward| of one step
 inline constexpr std::string_view kTrajectoryMagic{"HNSTRAJ\n", 8};
 inline constexpr int kActionFields = 5;          // move x, move y, turn (bins 0..10), grab, lock (0/1)
 inline constexpr int kTrajectoryLidarRays = 30;  // world-fixed rays, angle 2πk/30 from +x
@@ -84,7 +90,12 @@ struct TrajectoryEpisode {
   bool operator==(const TrajectoryEpisode&) const = default;
 };
 
+// FNV-1a 64 of an episode's payload as 16 hex digits: the "payload_fnv1a64" of version 2 episode headers.
+std::string trajectory_checksum(std::string_view payload);
+
 struct TrajectoryFile {
+  int version = kTrajectoryVersion;  // as read (writers always write kTrajectoryVersion)
+  std::vector<std::string> warnings;  // what a reader should tell the user (e.g. an unchecksummed old file)
   std::string created_by = "hns play";
   std::string policy = "random";  // random, or the checkpoint that chose the actions
   std::vector<TrajectoryEpisode> episodes;

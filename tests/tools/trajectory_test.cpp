@@ -44,9 +44,10 @@ TrajectoryEpisode make_episode(int hiders, int seekers, int boxes, int ramps, in
   ep.resize(frames);
   physics::Rng rng(seed, 1, 2);
   const int a = ep.num_agents(), o = ep.num_objects();
-  for (float& v : ep.agent_pose) v = float(rng.uniform(-1, 7));
-  for (float& v : ep.box_pose) v = float(rng.uniform(-1, 7));
-  for (float& v : ep.ramp_pose) v = float(rng.uniform(-1, 7));
+  // Poses (x, y, z, yaw): positions around the arena, yaw in [-π, π].
+  for (auto* poses : {&ep.agent_pose, &ep.box_pose, &ep.ramp_pose}) {
+    for (size_t i = 0; i < poses->size(); ++i) (*poses)[i] = float(i % 4 == 3 ? rng.uniform(-3.14, 3.14) : rng.uniform(-1, 7));
+  }
   for (uint8_t& v : ep.object_lock) v = uint8_t(rng.uniform_int(0, 3));
   for (int8_t& v : ep.object_locker) v = int8_t(rng.uniform_int(-1, a));
   for (int8_t& v : ep.agent_holding) v = int8_t(rng.uniform_int(-1, o));
@@ -91,10 +92,12 @@ std::vector<RawChunk> split(const std::string& bytes) {
   }
   return chunks;
 }
-// Re-assembles chunks with correct padding (payload_bytes is kept as the header says).
+// Re-assembles chunks with correct padding (payload_bytes is kept as the header says) and, for an edited
+// payload, a matching checksum (so that a test reaches the check it aims at).
 std::string join(const std::vector<RawChunk>& chunks) {
   std::string out(kTrajectoryMagic);
-  for (const RawChunk& c : chunks) {
+  for (RawChunk c : chunks) {
+    if (c.header.contains("payload_fnv1a64")) c.header["payload_fnv1a64"] = trajectory_checksum(c.payload);
     std::string text = c.header.dump();
     while ((4 + text.size()) % 8 != 0) text += ' ';
     const uint32_t len = uint32_t(text.size());
@@ -200,8 +203,8 @@ TEST(Trajectory, UnreadableFileNamesThePath) {
 TEST(TrajectoryErrors, MagicAndFileHeader) {
   expect_error("", {"byte 0", "not an hns trajectory"});
   expect_error("GIF89a..........", {"byte 0", "magic"});
-  expect_error(edited([](RawChunk& c) { c.header["version"] = 2; }, 0),
-               {"file header", "\"version\"", "reads version 1", "newer"});
+  expect_error(edited([](RawChunk& c) { c.header["version"] = 3; }, 0),
+               {"file header", "\"version\"", "reads versions 1 and 2", "newer"});
   expect_error(edited([](RawChunk& c) { c.header["format"] = "other"; }, 0), {"file header", "\"format\""});
   expect_error(edited([](RawChunk& c) { c.header["episodes"] = 4; }, 0),
                {"ends after 3 of 4 episodes", "truncated"});
@@ -287,6 +290,48 @@ TEST(TrajectoryErrors, Values) {
                {"block \"action\"", "frame 1, agent 2, field 1", "0..10"});
   expect_error(poke("action", 3, uint8_t(2)), {"block \"action\"", "field 3", "0..1"});
   expect_error(poke("reward", 0, std::numeric_limits<float>::infinity()), {"block \"reward\"", "finite"});
+}
+
+// Version 2 episodes carry a checksum of their payload: any flipped payload byte is refused, naming it.
+TEST(TrajectoryErrors, PayloadChecksum) {
+  const std::string good = encode_trajectory(make_file());
+  const std::vector<RawChunk> chunks = split(good);
+  // The payload of episode 0 starts where its chunk's JSON ends.
+  const size_t start = 8 + 4 + chunks[0].header.dump().size();
+  size_t payload_at = good.find(chunks[1].payload, start);
+  ASSERT_NE(payload_at, std::string::npos);
+  physics::Rng rng(5, 0, 0);
+  for (int trial = 0; trial < 200; ++trial) {
+    std::string bad = good;
+    const size_t at = payload_at + size_t(rng.uniform_int(0, int(chunks[1].payload.size())));
+    bad[at] = char(bad[at] ^ (1 << rng.uniform_int(0, 8)));
+    expect_error(bad, {"episode 0", "payload_fnv1a64", "corrupt"});
+  }
+}
+
+// A version 1 file (no checksum) is still read, with a warning; its values are range checked, so a box
+// flung to z = -4.6e18 m is refused.
+TEST(TrajectoryErrors, VersionOneIsReadWithAWarningAndRangeChecked) {
+  auto as_version_one = [](RawChunk& c) {
+    c.header["version"] = 1;
+    c.header.erase("payload_fnv1a64");
+  };
+  std::vector<RawChunk> chunks = split(encode_trajectory(make_file()));
+  for (RawChunk& c : chunks) as_version_one(c);
+  const TrajectoryFile old = decode_trajectory(join(chunks));
+  EXPECT_EQ(old.version, 1);
+  ASSERT_EQ(old.warnings.size(), 1u);
+  EXPECT_NE(old.warnings[0].find("no checksum"), std::string::npos);
+  EXPECT_EQ(old.episodes, make_file().episodes);
+  const float far = -4.6e18f;
+  const size_t z_of_box1 = 4 + 2;  // frame 0, box 1, element z
+  std::memcpy(chunks[1].payload.data() + block(chunks[1], "box_pose")["offset"].get<size_t>() +
+                  z_of_box1 * sizeof(float),
+              &far, sizeof far);
+  expect_error(join(chunks), {"episode 0", "block \"box_pose\"", "element 6", "z within ±100 m"});
+  const TrajectoryFile fresh = decode_trajectory(encode_trajectory(make_file()));
+  EXPECT_EQ(fresh.version, kTrajectoryVersion);
+  EXPECT_TRUE(fresh.warnings.empty());
 }
 
 TEST(TrajectoryErrors, StructureAndTruncation) {
