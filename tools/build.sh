@@ -45,9 +45,28 @@ hns_apt_install() {
 hns_install_packages() { hns_apt_install required "${HNS_PACKAGES[@]}"; }
 hns_install_test_packages() { hns_apt_install optional "${HNS_TEST_PACKAGES[@]}"; }
 
+# The build folder: build/, or build-<sanitizers>/ for a sanitizer build (HNS_SANITIZE=address,undefined).
+hns_build_dir() {
+  if [ -n "${HNS_SANITIZE:-}" ]; then echo "$HNS_ROOT/build-${HNS_SANITIZE//,/-}"; else echo "$HNS_ROOT/build"; fi
+}
+
 hns_build() {
-  local jobs
+  local jobs dir
   jobs="${HNS_JOBS:-$(nproc)}"
-  cmake -S "$HNS_ROOT" -B "$HNS_ROOT/build" -DCMAKE_BUILD_TYPE=Release ${HNS_CMAKE_ARGS:-}
-  cmake --build "$HNS_ROOT/build" -j "$jobs"
+  dir="$(hns_build_dir)"
+  if [ -n "${HNS_SANITIZE:-}" ]; then
+    # Sanitizer trees are built with clang (libFuzzer's compiler: an address/undefined tree also holds the
+    # fuzz targets, so CI builds one tree for both); optimised, with debug info for readable reports.
+    hns_apt_install required clang libclang-rt-14-dev
+    local fuzz=OFF
+    [[ "$HNS_SANITIZE" == *thread* ]] || fuzz=ON
+    if [ -f "$dir/CMakeCache.txt" ] && ! grep -q "CMAKE_CXX_COMPILER:.*clang" "$dir/CMakeCache.txt"; then
+      rm -rf "$dir"  # a tree configured with another compiler cannot be switched in place
+    fi
+    CC=clang CXX=clang++ cmake -S "$HNS_ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
+      -DHNS_SANITIZE="$HNS_SANITIZE" -DHNS_FUZZ="$fuzz" -DHNS_BUILD_BENCH=OFF ${HNS_CMAKE_ARGS:-}
+  else
+    cmake -S "$HNS_ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=Release ${HNS_CMAKE_ARGS:-}
+  fi
+  cmake --build "$dir" -j "$jobs"
 }

@@ -120,8 +120,8 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--envs", opt->envs, "Envs played side by side")
       ->check(CLI::Range(1, 4096))
       ->capture_default_str();
-  cmd->add_option("--threads", opt->threads, "Worker threads")
-      ->check(CLI::Range(1, 1024))
+  cmd->add_option("--threads", opt->threads, "Worker threads (0 = all the machine has)")
+      ->check(CLI::Range(0, 1024))
       ->capture_default_str();
   cmd->add_option("--hiders", opt->hiders, "Fix the hider count")->check(CLI::Range(0, 32));
   cmd->add_option("--seekers", opt->seekers, "Fix the seeker count")->check(CLI::Range(0, 32));

@@ -37,7 +37,8 @@ int run_replay(const ReplayOptions& opt) {
     std::fprintf(stderr, "hns replay: bad trajectory file %s: %s\n", opt.file.c_str(), e.what());
     return 2;
   }
-  for (const std::string& w : trajectory.warnings) std::fprintf(stderr, "hns replay: warning: %s: %s\n", opt.file.c_str(), w.c_str());
+  for (const std::string& w : trajectory.warnings)
+    std::fprintf(stderr, "hns replay: warning: %s: %s\n", opt.file.c_str(), w.c_str());
   if (trajectory.episodes.empty()) {
     std::fprintf(stderr, "hns replay: bad trajectory file %s: it holds no episodes\n", opt.file.c_str());
     return 2;

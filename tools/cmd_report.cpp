@@ -40,22 +40,14 @@ int run_report(const ReportOptions& opt) {
                  metrics_path.string().c_str(), opt.dir.c_str());
     return 2;
   }
-  nlohmann::json metrics = nlohmann::json::array();
-  std::string line;
-  int number = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    if (line.empty()) continue;
-    nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
-    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
-        !row.contains("agent_steps")) {
-      std::fprintf(
-          stderr,
-          "hns report: %s:%d is not an iteration record (a JSON object with iteration, agent_steps)\n",
-          metrics_path.string().c_str(), number);
-      return 2;
-    }
-    metrics.push_back(std::move(row));
+  std::ostringstream text;
+  text << in.rdbuf();
+  MetricsRows metrics;
+  try {
+    metrics = read_metrics_jsonl(text.str());
+  } catch (const MetricsError& e) {
+    std::fprintf(stderr, "hns report: %s:%zu %s\n", metrics_path.string().c_str(), e.line, e.what());
+    return 2;
   }
   nlohmann::json config = nlohmann::json::object();
   {
@@ -82,13 +74,13 @@ int run_report(const ReportOptions& opt) {
   }
   ReportInputs inputs;
   inputs.title = opt.title.empty() ? "hns training report: " + opt.dir : opt.title;
-  inputs.metrics_json = metrics.dump();
+  inputs.metrics_json = metrics.json;
   inputs.config_json = config.dump();
   inputs.replay_html = replay;
   const std::string page = render_report_html(inputs);
   write_atomically(opt.html, page);
   std::printf("hns report: wrote %s (%zu iterations%s, %.1f KB); open it in a browser\n", opt.html.c_str(),
-              metrics.size(), replay.empty() ? ", no replay" : ", with a replay", page.size() / 1024.0);
+              metrics.rows, replay.empty() ? ", no replay" : ", with a replay", page.size() / 1024.0);
   return 0;
 }
 

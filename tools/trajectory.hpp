@@ -18,13 +18,14 @@
 
 namespace hns::tools {
 
-inline constexpr int kTrajectoryVersion = 2;  // 2: episodes carry a checksum of their payload (1 is still read)
-// Bounds of the physically meaningful values a reader accepts (the simulator resets a world whose bodies leave
-// the first two, SPEC-wide).
-inline constexpr double kTrajectoryMaxXY = 200.0;     // m, |x| and |y| of every body
-inline constexpr double kTrajectoryMaxZ = 100.0;      // m, |z|
-inline constexpr double kTrajectoryMaxYaw = 4.0;      // rad, |yaw| (recorded in [-π, π])
-inline constexpr double kTrajectoryMaxReward = 1e4;   // |reward| of one step
+inline constexpr int kTrajectoryVersion =
+    2;  // 2: episodes carry a checksum of their payload (1 is still read)
+// Bounds of the physically meaningful values a reader accepts (the simulator resets a world whose bodies
+// leave the first two, SPEC-wide).
+inline constexpr double kTrajectoryMaxXY = 200.0;    // m, |x| and |y| of every body
+inline constexpr double kTrajectoryMaxZ = 100.0;     // m, |z|
+inline constexpr double kTrajectoryMaxYaw = 4.0;     // rad, |yaw| (recorded in [-π, π])
+inline constexpr double kTrajectoryMaxReward = 1e4;  // |reward| of one step
 inline constexpr std::string_view kTrajectoryMagic{"HNSTRAJ\n", 8};
 inline constexpr int kActionFields = 5;          // move x, move y, turn (bins 0..10), grab, lock (0/1)
 inline constexpr int kTrajectoryLidarRays = 30;  // world-fixed rays, angle 2πk/30 from +x
@@ -94,7 +95,7 @@ struct TrajectoryEpisode {
 std::string trajectory_checksum(std::string_view payload);
 
 struct TrajectoryFile {
-  int version = kTrajectoryVersion;  // as read (writers always write kTrajectoryVersion)
+  int version = kTrajectoryVersion;   // as read (writers always write kTrajectoryVersion)
   std::vector<std::string> warnings;  // what a reader should tell the user (e.g. an unchecksummed old file)
   std::string created_by = "hns play";
   std::string policy = "random";  // random, or the checkpoint that chose the actions
@@ -105,7 +106,8 @@ struct TrajectoryFile {
 // The whole file in memory.
 std::string encode_trajectory(const TrajectoryFile& file);
 // Parses and checks everything (structure, header fields, block shapes, values); throws TrajectoryError.
-TrajectoryFile decode_trajectory(std::string_view bytes);
+// verify_checksums = false skips the payload checksums (the fuzzer's way past them); every other check runs.
+TrajectoryFile decode_trajectory(std::string_view bytes, bool verify_checksums = true);
 // The bytes of a file; throws TrajectoryError "PATH: cannot read: ..." if it cannot be read.
 std::string read_file_bytes(const std::string& path);
 // Reads and decodes a file; errors are prefixed with the path.

@@ -16,7 +16,6 @@ namespace hns::batch {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr float kPi = 3.14159265358979323846f;
 constexpr float kOutOfBoundsReward = -10.0f;  // SPEC §5.2
 constexpr float kAgentRadius = float(physics::kAgentRadius);
 constexpr float kArmRadius = float(physics::kArmRadius);
@@ -345,14 +344,16 @@ void BatchSim::mirror_env(int env) {
   const size_t a0 = size_t(env) * L.max_agents, b0 = size_t(env) * L.max_boxes,
                r0 = size_t(env) * L.max_ramps;
   mirror_bodies(
-      L.max_agents, world.num_agents(), [&](int i) { return world.agent_state(i); }, &s.agent_pos[3 * a0],
-      &s.agent_rot[2 * a0], &s.agent_vel[3 * a0], &s.agent_angvel[a0]);
+      L.max_agents, world.num_agents(), [&](int i) { return world.agent_state(i); },
+      s.agent_pos.data() + (3 * a0), s.agent_rot.data() + (2 * a0), s.agent_vel.data() + (3 * a0),
+      s.agent_angvel.data() + a0);
   mirror_bodies(
-      L.max_boxes, world.num_boxes(), [&](int i) { return world.box_state(i); }, &s.box_pos[3 * b0],
-      &s.box_rot[2 * b0], &s.box_vel[3 * b0], &s.box_angvel[b0]);
+      L.max_boxes, world.num_boxes(), [&](int i) { return world.box_state(i); }, s.box_pos.data() + (3 * b0),
+      s.box_rot.data() + (2 * b0), s.box_vel.data() + (3 * b0), s.box_angvel.data() + b0);
   mirror_bodies(
-      L.max_ramps, world.num_ramps(), [&](int i) { return world.ramp_state(i); }, &s.ramp_pos[3 * r0],
-      &s.ramp_rot[2 * r0], &s.ramp_vel[3 * r0], &s.ramp_angvel[r0]);
+      L.max_ramps, world.num_ramps(), [&](int i) { return world.ramp_state(i); },
+      s.ramp_pos.data() + (3 * r0), s.ramp_rot.data() + (2 * r0), s.ramp_vel.data() + (3 * r0),
+      s.ramp_angvel.data() + r0);
   for (int a = 0; a < L.max_agents; ++a) {
     const bool exists = a < world.num_agents();
     s.agent_exists[a0 + a] = exists ? 1 : 0;
@@ -411,8 +412,8 @@ void BatchSim::build_shapes(int env) {
     const size_t i = size_t(env) * L.max_agents + a;
     const bool exists = s.agent_exists[i] != 0;
     float arms[2][3];
-    physics::arm_centres(&s.agent_pos[3 * i], s.agent_rot[2 * i], s.agent_rot[2 * i + 1], arms);
-    const float* centres[Layout::kSpheresPerAgent] = {&s.agent_pos[3 * i], arms[0], arms[1]};
+    physics::arm_centres(s.agent_pos.data() + (3 * i), s.agent_rot[2 * i], s.agent_rot[2 * i + 1], arms);
+    const float* centres[Layout::kSpheresPerAgent] = {s.agent_pos.data() + (3 * i), arms[0], arms[1]};
     for (int k = 0; k < Layout::kSpheresPerAgent; ++k) {
       const size_t slot = ss + size_t(a) * Layout::kSpheresPerAgent + k;
       s.shape_sphere_cx[slot] = exists ? centres[k][0] : 0.0f;
@@ -587,9 +588,9 @@ void BatchSim::rewards_env(int env) {
   bool objects_out = false;
   if (wc.penalize_objects_out) {
     for (int b = 0; b < world.num_boxes(); ++b)
-      objects_out = objects_out || outside(&s.box_pos[(size_t(env) * L.max_boxes + b) * 3]);
+      objects_out = objects_out || outside(s.box_pos.data() + ((size_t(env) * L.max_boxes + b) * 3));
     for (int r = 0; r < world.num_ramps(); ++r)
-      objects_out = objects_out || outside(&s.ramp_pos[(size_t(env) * L.max_ramps + r) * 3]);
+      objects_out = objects_out || outside(s.ramp_pos.data() + ((size_t(env) * L.max_ramps + r) * 3));
   }
   const bool prep = t <= wc.prep_steps();
   float* reward = s.reward.data() + size_t(env) * L.max_agents;
@@ -695,10 +696,12 @@ void BatchSim::measure_env(int env, float out[4]) const {
     return float(c);
   };
   const size_t b = size_t(env) * L.max_boxes, r = size_t(env) * L.max_ramps;
-  out[0] = max_move(&s.box_pos[3 * b], &s.box_pos_start[3 * b], &s.box_exists[b], L.max_boxes);
-  out[1] = count(&s.box_locked[b], L.max_boxes);
-  out[2] = max_move(&s.ramp_pos[3 * r], &s.ramp_pos_start[3 * r], &s.ramp_exists[r], L.max_ramps);
-  out[3] = count(&s.ramp_locked[r], L.max_ramps);
+  out[0] = max_move(s.box_pos.data() + (3 * b), s.box_pos_start.data() + (3 * b), s.box_exists.data() + b,
+                    L.max_boxes);
+  out[1] = count(s.box_locked.data() + b, L.max_boxes);
+  out[2] = max_move(s.ramp_pos.data() + (3 * r), s.ramp_pos_start.data() + (3 * r), s.ramp_exists.data() + r,
+                    L.max_ramps);
+  out[3] = count(s.ramp_locked.data() + r, L.max_ramps);
 }
 
 // Records the finished episode's statistics and starts the env's next episode.
@@ -792,11 +795,11 @@ void BatchSim::observe_env(int env) {
     for (int b = 0; b < nb; ++b) {
       const size_t i = size_t(env) * B + b;
       float* out = obs_boxes + (size_t(a) * B + b) * Layout::kBoxFeatures;
-      std::copy_n(&s.box_pos[3 * i], 3, out);
-      std::copy_n(&s.box_rot[2 * i], 2, out + 3);
-      std::copy_n(&s.box_vel[3 * i], 3, out + 5);
+      std::copy_n(s.box_pos.data() + (3 * i), 3, out);
+      std::copy_n(s.box_rot.data() + (2 * i), 2, out + 3);
+      std::copy_n(s.box_vel.data() + (3 * i), 3, out + 5);
       out[8] = s.box_angvel[i];
-      std::copy_n(&s.box_size[3 * i], 3, out + 9);
+      std::copy_n(s.box_size.data() + (3 * i), 3, out + 9);
       lock_features(s.box_locked[i] != 0, s.box_locker[i], a, out + 12);
       mask_boxes[a * B + b] = vis_boxes[a * B + b];
       value_mask_boxes[a * B + b] = 1;
@@ -804,9 +807,9 @@ void BatchSim::observe_env(int env) {
     for (int r = 0; r < nr; ++r) {
       const size_t i = size_t(env) * R + r;
       float* out = obs_ramps + (size_t(a) * R + r) * Layout::kRampFeatures;
-      std::copy_n(&s.ramp_pos[3 * i], 3, out);
-      std::copy_n(&s.ramp_rot[2 * i], 2, out + 3);
-      std::copy_n(&s.ramp_vel[3 * i], 3, out + 5);
+      std::copy_n(s.ramp_pos.data() + (3 * i), 3, out);
+      std::copy_n(s.ramp_rot.data() + (2 * i), 2, out + 3);
+      std::copy_n(s.ramp_vel.data() + (3 * i), 3, out + 5);
       out[8] = s.ramp_angvel[i];
       lock_features(s.ramp_locked[i] != 0, s.ramp_locker[i], a, out + 9);
       mask_ramps[a * R + r] = vis_ramps[a * R + r];

@@ -25,7 +25,7 @@ expect_fail() {
 
 expect_fail 2 "scene" bench --scene nowhere
 expect_fail 2 "envs" bench --envs -3
-expect_fail 2 "threads" bench --threads 0
+expect_fail 2 "threads" bench --threads -1
 expect_fail 2 "boxes" bench --scene quadrant --boxes 40
 expect_fail 2 "boxes.max = 20" bench --scene quadrant --boxes 20
 expect_fail 2 "hiders" bench --hiders 0 --seekers 0
