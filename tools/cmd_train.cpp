@@ -182,10 +182,6 @@ int run_train(const TrainOptions& opt) {
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
-  if (!opt.profile.empty()) {
-    check_output_path("--profile", opt.profile,
-                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string()});
-  }
   if (!resume) {
     check_run_folder(dir);
     // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
@@ -194,12 +190,18 @@ int run_train(const TrainOptions& opt) {
       throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
                                  ", or start over with --overwrite");
     }
+    fs::create_directories(dir);  // before the --profile check: a profile may go into the new run folder
+  }
+  if (!opt.profile.empty()) {
+    check_output_path("--profile", opt.profile,
+                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string()});
+  }
+  if (!resume) {
     if (!fs::exists(ckpt) && fs::exists(metrics_path)) {
       std::printf(
           "hns train: %s holds no checkpoint (an earlier run stopped before writing one): starting over\n",
           dir.c_str());
     }
-    fs::create_directories(dir);
     for (const std::string& f : {ckpt, metrics_path, replay_path}) {
       fs::remove(f);
       fs::remove(f + ".tmp");
