@@ -23,8 +23,6 @@ namespace hns::batch {
 
 using physics::AgentAction;
 
-struct BatchConfig;
-
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
   int num_envs = 64;
