@@ -3,14 +3,15 @@
 //
 //   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
 //             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--overwrite] [--profile FILE]
+#include <unistd.h>
 #include <atomic>
 #include <csignal>
+
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <optional>
-#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -85,42 +86,27 @@ void truncate_metrics(const std::string& path, int64_t iteration) {
   write_atomically(path, kept);
 }
 
-// The files `hns train` writes into a run folder (`hns report` suggests report.html beside them).
-const std::set<std::string> kRunFiles = {"config.json", "metrics.jsonl", "checkpoint.bin", "replay.traj",
-                                         "report.html"};
+// A run folder is marked by this file, which hns train writes into it; hns train only ever removes its own
+// files (checkpoint.bin, metrics.jsonl, replay.traj) from a marked folder and leaves everything else alone.
+constexpr const char* kRunMarker = ".hns-run";
 
-// The first entry of folder `dir` that hns did not write (its files and their temporaries), or "".
-std::string foreign_entry(const fs::path& dir) {
-  for (const fs::directory_entry& e : fs::directory_iterator(dir)) {
-    std::string name = e.path().filename().string();
-    if (name.size() > 4 && name.ends_with(".tmp")) name.resize(name.size() - 4);
-    if (!e.is_regular_file() || !kRunFiles.contains(name)) return e.path().filename().string();
-  }
-  return "";
-}
-
-// Refuses (ConfigError) a --out folder that is not a new, empty or hns run folder: hns only ever removes
-// or overwrites what it wrote itself.
+// Whether `dir` may take a run: it does not exist, is empty, carries the marker, or holds a checkpoint.bin
+// with hns's magic (a run of an hns from before the marker). Anything else is refused (ConfigError), so
+// that no file of the user's is ever removed or overwritten, --overwrite included.
 void check_run_folder(const std::string& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;
   if (!fs::is_directory(dir, ec)) throw physics::ConfigError("--out " + dir + " exists and is not a folder");
-  const std::string foreign = foreign_entry(dir);
-  if (!foreign.empty()) {
-    throw physics::ConfigError("--out " + dir + " holds '" + foreign +
-                               "', which hns train did not write: give a new or empty folder (hns never "
-                               "removes files it did not write, --overwrite included)");
-  }
-  const fs::path config = fs::path(dir) / "config.json";
-  if (fs::exists(config, ec)) {
-    ppo::TrainConfig c;
-    try {
-      c.merge_json(read_text(config.string(), "--out: run config"), config.string());
-    } catch (const physics::ConfigError& e) {
-      throw physics::ConfigError("--out " + dir + ": its config.json is not an hns run config (" + e.what() +
-                                 "): give a new or empty folder");
-    }
-  }
+  if (fs::exists(fs::path(dir) / kRunMarker, ec)) return;
+  fs::directory_iterator it(dir, ec);
+  if (ec) throw physics::ConfigError("--out " + dir + " cannot be read: " + ec.message());
+  if (it == fs::directory_iterator()) return;  // empty
+  std::ifstream ckpt(fs::path(dir) / "checkpoint.bin", std::ios::binary);
+  char magic[8] = {};
+  if (ckpt.read(magic, 8) && std::string(magic, 8) == "HNSCKPT\n") return;
+  throw physics::ConfigError("--out " + dir + " holds '" + it->path().filename().string() +
+                             "' and is not a run folder of hns train: give a new or empty folder (hns never "
+                             "removes files it did not write, --overwrite included)");
 }
 
 // Records `episodes` episodes with the trainer's current policy into `path` (atomically), for the report.
@@ -190,7 +176,16 @@ int run_train(const TrainOptions& opt) {
       throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
                                  ", or start over with --overwrite");
     }
-    fs::create_directories(dir);  // before the --profile check: a profile may go into the new run folder
+    std::error_code ec;
+    fs::create_directories(dir, ec);  // before the --profile check: a profile may go into the new run folder
+    if (ec) throw physics::ConfigError("--out " + dir + " cannot be created: " + ec.message());
+    if (::access(dir.c_str(), W_OK | X_OK) != 0)
+      throw physics::ConfigError("--out " + dir + " is not writable");
+    if (!opt.config_file.empty() && fs::equivalent(opt.config_file, fs::path(dir) / "config.json", ec)) {
+      throw physics::ConfigError("--config " + opt.config_file + " is the run's own config.json in --out " +
+                                 dir + ", which the run rewrites: copy it elsewhere first");
+    }
+    write_atomically((fs::path(dir) / kRunMarker).string(), "a run folder of hns train\n");
   }
   if (!opt.profile.empty()) {
     check_output_path("--profile", opt.profile,

@@ -80,10 +80,10 @@ expect_fail 2 "seed = -1" bench --seed -1 --steps 1
 expect_fail 2 "seed = 1e23" bench --seed 1e23 --steps 1
 expect_fail 2 "seed = 18446744073709551616" bench --seed 18446744073709551616 --steps 1
 expect_fail 2 "cannot be placed.*12 boxes" bench --scene quadrant --boxes 12 --steps 1
-expect_fail 2 "envs 1000000 needs about .* GB of memory" bench --envs 1000000 --steps 1
+expect_fail 2 "needs about .* GB of memory" train --scene full --model paper --envs 11000 --out "$tmp/huge-mem"
 expect_fail 2 "unknown command 'frobnicate'" frobnicate
-if "$hns" bench --envs 1 --steps 1 --threads 64 --json "$tmp/t.json" 2>&1 | grep -q "64 threads requested" &&
-   ! grep -q '"threads": 64' "$tmp/t.json"; then
+if "$hns" bench --envs 1 --steps 1 --threads 1024 --json "$tmp/t.json" 2>&1 | grep -q "1024 threads requested" &&
+   ! grep -q '"threads": 1024' "$tmp/t.json"; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
@@ -152,10 +152,12 @@ fi
 expect_fail 2 "already holds a run" train --config "$tmp/train.json" --iterations 2 --out "$tmp/run"
 # A folder with files hns did not write is refused, --overwrite included, and nothing in it is touched.
 mkdir -p "$tmp/mine" && echo "my notes" >"$tmp/mine/notes.txt" && echo '{"not": "hns"}' >"$tmp/mine/metrics.jsonl"
-expect_fail 2 "holds 'notes.txt', which hns train did not write" train --config "$tmp/train.json" --out "$tmp/mine"
-expect_fail 2 "notes.txt" train --config "$tmp/train.json" --out "$tmp/mine" --overwrite
+expect_fail 2 "holds '.*' and is not a run folder of hns train" train --config "$tmp/train.json" --out "$tmp/mine"
+mkdir -p "$tmp/onlymetrics" && echo '{"iteration": 1, "agent_steps": 1}' >"$tmp/onlymetrics/metrics.jsonl"
+expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/mine" --overwrite
+expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/onlymetrics" --overwrite
 mkdir -p "$tmp/cfgonly" && echo '{"colour": "red"}' >"$tmp/cfgonly/config.json"
-expect_fail 2 "not an hns run config" train --config "$tmp/train.json" --out "$tmp/cfgonly"
+expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/cfgonly"
 if [ "$(cat "$tmp/mine/notes.txt")" = "my notes" ] && grep -q '"not"' "$tmp/mine/metrics.jsonl" &&
    grep -q colour "$tmp/cfgonly/config.json"; then
   passed=$((passed + 1))
