@@ -64,5 +64,6 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string bytes(reinterpret_cast<const char*>(data), size);
   load(*trainer, path, bytes);
   if (bytes.compare(0, 8, "HNSCKPT\n") != 0) load(*trainer, path, wrap_as_checkpoint(bytes));
+  std::remove(path.c_str());
   return 0;
 }
