@@ -46,7 +46,8 @@ TrajectoryEpisode make_episode(int hiders, int seekers, int boxes, int ramps, in
   const int a = ep.num_agents(), o = ep.num_objects();
   // Poses (x, y, z, yaw): positions around the arena, yaw in [-π, π].
   for (auto* poses : {&ep.agent_pose, &ep.box_pose, &ep.ramp_pose}) {
-    for (size_t i = 0; i < poses->size(); ++i) (*poses)[i] = float(i % 4 == 3 ? rng.uniform(-3.14, 3.14) : rng.uniform(-1, 7));
+    for (size_t i = 0; i < poses->size(); ++i)
+      (*poses)[i] = float(i % 4 == 3 ? rng.uniform(-3.14, 3.14) : rng.uniform(-1, 7));
   }
   for (uint8_t& v : ep.object_lock) v = uint8_t(rng.uniform_int(0, 3));
   for (int8_t& v : ep.object_locker) v = int8_t(rng.uniform_int(-1, a));
