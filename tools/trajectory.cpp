@@ -287,7 +287,7 @@ Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what)
   Chunk c;
   try {
     c.header = json::parse(bytes.substr(pos + 4, length));
-  } catch (const json::parse_error& e) {
+  } catch (const json::exception& e) {  // parse_error, and out_of_range for a number beyond a double's range
     throw TrajectoryError(where + ": header is not valid JSON: " + e.what());
   }
   if (!c.header.is_object()) throw TrajectoryError(where + ": header is not a JSON object");

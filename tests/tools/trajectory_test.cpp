@@ -95,11 +95,15 @@ std::vector<RawChunk> split(const std::string& bytes) {
 }
 // Re-assembles chunks with correct padding (payload_bytes is kept as the header says) and, for an edited
 // payload, a matching checksum (so that a test reaches the check it aims at).
-std::string join(const std::vector<RawChunk>& chunks) {
+// `edit_text(index, text)`, if given, may rewrite a header's JSON text (to write what json cannot hold).
+std::string join(const std::vector<RawChunk>& chunks,
+                 const std::function<void(size_t, std::string&)>& edit_text = nullptr) {
   std::string out(kTrajectoryMagic);
-  for (RawChunk c : chunks) {
+  for (size_t index = 0; index < chunks.size(); ++index) {
+    RawChunk c = chunks[index];
     if (c.header.contains("payload_fnv1a64")) c.header["payload_fnv1a64"] = trajectory_checksum(c.payload);
     std::string text = c.header.dump();
+    if (edit_text) edit_text(index, text);
     while ((4 + text.size()) % 8 != 0) text += ' ';
     const uint32_t len = uint32_t(text.size());
     out.append(reinterpret_cast<const char*>(&len), 4);
@@ -347,6 +351,16 @@ TEST(TrajectoryErrors, StructureAndTruncation) {
   std::string bad_json = good;
   bad_json[8 + 4] = '[';
   expect_error(bad_json, {"byte 8 (file header)", "not valid JSON"});
+  // Well-formed JSON with a number beyond a double's range (the JSON library raises out_of_range there,
+  // not parse_error): found by tools/fuzz in CI, where it ended the process.
+  for (const size_t index : {size_t(0), size_t(2)}) {
+    std::vector<RawChunk> chunks = split(good);
+    chunks[index].header["overflow"] = 12345;
+    const std::string bytes = join(chunks, [&](size_t i, std::string& text) {
+      if (i == index) text.replace(text.find("12345"), 5, "1e999");
+    });
+    expect_error(bytes, {index == 0 ? "byte 8 (file header)" : "(episode 1)", "not valid JSON", "1e999"});
+  }
   std::string text = split(good)[0].header.dump();
   if ((4 + text.size()) % 8 == 0) text += ' ';
   const uint32_t len = uint32_t(text.size());
