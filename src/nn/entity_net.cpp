@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <stdexcept>
 
@@ -112,12 +113,33 @@ double EntityNet::forward_flops(int rows) const {
   return f;
 }
 
+// Extra, deterministic work per row of every forward pass in builds configured with HNS_INJECT_NN_WORK > 0:
+// tools/perf-gate's tests use such a build as a known slowdown of the network path. A no-op otherwise.
+#ifndef HNS_INJECT_NN_WORK
+#define HNS_INJECT_NN_WORK 0
+#endif
+namespace {
+void inject_nn_work(int rows) {
+  if constexpr (HNS_INJECT_NN_WORK > 0) {
+    static volatile uint64_t sink = 0;
+    uint64_t x = sink | 1;
+    for (long i = 0; i < long(HNS_INJECT_NN_WORK) * rows; ++i) {
+      x ^= x << 13;
+      x ^= x >> 7;
+      x ^= x << 17;
+    }
+    sink = x;
+  }
+}
+}  // namespace
+
 void EntityNet::forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences,
                         int steps, const float* state_in, float* state_out, Work& ws) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
   const int rows = sequences * steps;
   assert(sequences <= b.sequences && steps == b.steps);
+  inject_nn_work(rows);
   const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
   const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
 
