@@ -14,6 +14,7 @@
 
 #include "batch/batch_sim.hpp"
 #include "cli.hpp"
+#include "nn/kernels.hpp"
 #include "nn/nn_bench.hpp"
 #include "physics/presets.hpp"
 
@@ -146,6 +147,7 @@ int run_nn_bench(const BenchOptions& opt) {
   std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
               opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences,
               o.train_steps);
+  std::printf("  instruction set         %s\n", hns::nn::kernels::isa_description().c_str());
   std::fflush(stdout);
   const hns::nn::NnBenchResult r = hns::nn::run_nn_bench(o);
   std::printf("  parameters              %12zu (policy + value)\n", r.params);
@@ -158,6 +160,7 @@ int run_nn_bench(const BenchOptions& opt) {
     const nlohmann::json j = {{"model", r.model},
                               {"threads", r.threads},
                               {"params", r.params},
+                              {"isa", hns::nn::kernels::isa_description()},
                               {"infer_agent_steps_per_s", r.infer_agent_steps_per_s},
                               {"train_agent_steps_per_s", r.train_agent_steps_per_s},
                               {"infer_gflops", r.infer_gflops},

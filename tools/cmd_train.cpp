@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "nn/kernels.hpp"
 #include "physics/scene.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
@@ -222,6 +223,7 @@ int run_train(const TrainOptions& opt) {
       cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
       cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed),
       threads_text(cfg.threads).c_str());
+  std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
                 static_cast<long long>(trainer.iteration()));

@@ -4,12 +4,19 @@
 
 #include <iostream>
 #include <new>
+#include <string>
 #include <vector>
 
 #include "cli.hpp"
+#include "nn/kernels.hpp"
 #include "physics/scene.hpp"
 
 int main(int argc, char** argv) {
+  // A binary built for AVX-512 on an AVX2 machine says so instead of dying of an illegal instruction.
+  if (const std::string lack = hns::nn::kernels::isa_unsupported(); !lack.empty()) {
+    std::cerr << "hns: " << lack << "\n";
+    return 2;
+  }
   CLI::App app{"hns: hide-and-seek simulator and trainer (physics on ODE)"};
   app.require_subcommand(1);
   std::vector<hns::tools::Command> commands;

@@ -1,5 +1,7 @@
 #include "nn/kernels.hpp"
 
+#include <string>
+
 #include "nn/simd.hpp"
 
 namespace hns::nn::kernels {
@@ -190,6 +192,62 @@ void lstm_cell_backward_impl(const float* gates, const float* c_prev, const floa
 
 int simd_width() {
   return simd::kWidth;
+}
+
+#ifndef HNS_ISA_SETTING
+#define HNS_ISA_SETTING "unknown"
+#endif
+
+std::string isa_description() {
+#if defined(__AVX512F__)
+  const char* vector = "AVX-512";
+#elif defined(__AVX2__)
+  const char* vector = "AVX2";
+#else
+  const char* vector = "SSE";
+#endif
+#if defined(__FMA__)
+  const char* fma = ", FMA";
+#else
+  const char* fma = ", no FMA";
+#endif
+  return std::string(HNS_ISA_SETTING) + " (" + vector + ", " + std::to_string(simd::kWidth) +
+         " floats per vector" + fma + ")";
+}
+
+std::string isa_unsupported() {
+  struct Feature {
+    bool compiled;
+    int present;
+    const char* name;
+  };
+  __builtin_cpu_init();
+  const Feature features[] = {
+#if defined(__AVX2__)
+    {true, __builtin_cpu_supports("avx2"), "avx2"},
+#endif
+#if defined(__FMA__)
+    {true, __builtin_cpu_supports("fma"), "fma"},
+#endif
+#if defined(__AVX512F__)
+    {true, __builtin_cpu_supports("avx512f"), "avx512f"},
+#endif
+#if defined(__AVX512BW__)
+    {true, __builtin_cpu_supports("avx512bw"), "avx512bw"},
+#endif
+#if defined(__AVX512DQ__)
+    {true, __builtin_cpu_supports("avx512dq"), "avx512dq"},
+#endif
+#if defined(__AVX512VL__)
+    {true, __builtin_cpu_supports("avx512vl"), "avx512vl"},
+#endif
+    {false, 1, ""}
+  };
+  for (const Feature& f : features)
+    if (f.compiled && f.present == 0)
+      return std::string("this build of hns uses ") + f.name + " (HNS_ISA=" + HNS_ISA_SETTING +
+             "), which this CPU does not have: rebuild with cmake -DHNS_ISA=avx2 (or HNS_ISA=avx2 tools/run)";
+  return {};
 }
 
 void normalize_obs(const float* x, const float* mean, const float* inv_std, const float* row_mask, int rows,

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <cstdint>
+#include <string>
 
 namespace hns::nn {
 
@@ -23,6 +24,13 @@ namespace kernels {
 
 // Floats per vector register in this build.
 int simd_width();
+
+// The instruction set of this build (CMake's HNS_ISA) and what it gives the kernels, e.g.
+// "avx512 (AVX-512, 16 floats per vector, FMA)".
+std::string isa_description();
+// Empty when this CPU has every instruction set extension the build was compiled for; otherwise a sentence
+// naming the first one it lacks (running on would end in an illegal-instruction signal).
+std::string isa_unsupported();
 
 // Observation normalisation fused with masking, over rows x n (contiguous):
 // y[r, f] = clip((x[r, f] - mean[f]) * inv_std[f], -kObsClip, kObsClip) if row_mask[r] != 0, else 0.

@@ -6,6 +6,8 @@
 
 #include <xsimd/xsimd.hpp>
 
+#include <immintrin.h>
+
 #include <bit>
 #include <cmath>
 #include <cstdint>
@@ -35,7 +37,12 @@ inline float fma(float a, float b, float c) {
   return std::fma(a, b, c);
 }
 inline Batch fma(const Batch& a, const Batch& b, const Batch& c) {
+#if defined(__AVX512F__)
+  // xsimd 8 has no AVX-512 fma: its generic fallback multiplies and adds, rounding twice.
+  return Batch(_mm512_fmadd_ps(a, b, c));
+#else
   return xsimd::fma(a, b, c);
+#endif
 }
 // max/min with the x86 rule (a > b ? a : b), identical in both paths.
 inline float max(float a, float b) {
