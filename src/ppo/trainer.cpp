@@ -14,6 +14,7 @@
 
 #include "physics/rng.hpp"
 #include "ppo/obs_arrays.hpp"
+#include "ppo/ppo_loss.hpp"
 #include "ppo/ppo_math.hpp"
 
 namespace hns::ppo {
@@ -29,9 +30,7 @@ double seconds_since(Clock::time_point t0) {
 constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
 constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
 
-// Loss statistics summed over chunks: policy loss, value loss, entropy (each x count), approx KL x count,
-// clipped entries, count.
-enum Stat { kPolicyLoss, kValueLoss, kEntropy, kKl, kClipped, kCount, kNumStats };
+constexpr int kNumStats = kNumPpoStats;
 
 float uniform_float(physics::Rng& rng) {
   return float(rng.next_u64() >> 40) * 0x1.0p-24f;
@@ -77,11 +76,7 @@ struct Trainer::Buffers {
   nn::FloatBuffer mb_state_p, mb_state_v;
   std::vector<int32_t> chunks;         // valid chunk ids c * G + g
   std::vector<int32_t> episode_start;  // [E] rollout step at which each env's current episode started
-  // Loss scratch per thread.
-  struct LossScratch {
-    std::vector<float> new_logp, entropy, grad_logp, d_entropy, grad_value;
-  };
-  tbb::enumerable_thread_specific<LossScratch> loss_scratch;
+  tbb::enumerable_thread_specific<PpoLossScratch> loss_scratch;  // per thread
 };
 
 std::string IterationMetrics::to_json() const {
@@ -468,38 +463,18 @@ void Trainer::update(IterationMetrics& m) {
       const double inv_total = 1.0 / double(total);
       const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
 
+      const PpoMinibatch mbatch{.actions = b.mb_actions.data(),
+                                .old_logp = b.mb_logp.data(),
+                                .advantages = b.mb_adv.data(),
+                                .returns = b.mb_ret.data(),
+                                .mask = b.mb_mask.data(),
+                                .clip = clip,
+                                .entropy_coef = ent_coef,
+                                .value_coef = v_coef,
+                                .inv_total = inv_total};
       nn::LossFn loss = [&](const nn::ChunkOutputs& out, const nn::ChunkGrads& g, std::span<double> st) {
-        Buffers::LossScratch& ls = b.loss_scratch.local();
-        const size_t n = size_t(out.rows);
-        for (auto* v : {&ls.new_logp, &ls.entropy, &ls.grad_logp, &ls.d_entropy, &ls.grad_value})
-          if (v->size() < n) v->resize(n);
-        const int r0 = out.first_row;
-        const int32_t* act = b.mb_actions.data() + size_t(r0) * heads;
-        hd.log_prob_entropy(out.logits, act, ls.new_logp.data(), ls.entropy.data());
-        const std::span<const uint8_t> mask(b.mb_mask.data() + r0, n);
-        const PolicyLossStats ps =
-            ppo_policy_loss({ls.new_logp.data(), n}, {b.mb_logp.data() + r0, n}, {b.mb_adv.data() + r0, n},
-                            mask, clip, {ls.grad_logp.data(), n});
-        const double vl =
-            value_loss({out.value, n}, {b.mb_ret.data() + r0, n}, mask, {ls.grad_value.data(), n});
-        // ppo_math's means are over this chunk's entries; rescale to the minibatch mean.
-        const float pscale = float(double(ps.count) * inv_total);
-        const float vscale = float(v_coef * double(ps.count) * inv_total);
-        double ent = 0;
-        for (size_t i = 0; i < n; ++i) {
-          ls.grad_logp[i] *= pscale;
-          g.d_value[i] = ls.grad_value[i] * vscale;
-          ls.d_entropy[i] = mask[i] != 0 ? float(-ent_coef * inv_total) : 0.0f;
-          if (mask[i] != 0) ent += ls.entropy[i];
-        }
+        ppo_chunk_loss(hd, mbatch, out, g, b.loss_scratch.local(), st);
         if (poison) g.d_value[0] = std::numeric_limits<float>::quiet_NaN();
-        hd.backward(out.logits, act, ls.grad_logp.data(), ls.d_entropy.data(), g.d_logits);
-        st[kPolicyLoss] += ps.loss * double(ps.count);
-        st[kValueLoss] += vl * double(ps.count);
-        st[kEntropy] += ent;
-        st[kKl] += ps.approx_kl * double(ps.count);
-        st[kClipped] += ps.clip_frac * double(ps.count);
-        st[kCount] += double(ps.count);
       };
       double st[kNumStats] = {};
       float* grads = net_->params().grads();

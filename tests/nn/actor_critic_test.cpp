@@ -18,24 +18,8 @@ namespace {
 using testing::random_mask;
 using testing::random_vector;
 
-// A network with the paper's structure and tiny widths (fast to check exhaustively).
 NetConfig tiny_config() {
-  NetConfig c;
-  c.obs.self_features = 4;
-  c.obs.max_agents = 3;
-  c.obs.agent_features = 3;
-  c.obs.max_boxes = 2;
-  c.obs.box_features = 5;
-  c.obs.max_ramps = 1;
-  c.obs.ramp_features = 4;
-  c.obs.lidar_rays = 8;
-  c.lidar_filters = 3;
-  c.embed = 8;
-  c.heads = 2;
-  c.dense = 10;
-  c.lstm = 6;
-  c.action_heads = {3, 2};
-  return c;
+  return testing::tiny_net_config();
 }
 
 // Random observations for `rows` agent-steps; present masks have padding slots, seen masks are subsets.
@@ -173,41 +157,17 @@ TEST(NnNetwork, EndToEndGradientMatchesFiniteDifferences) {
   };
   loss_value = eval();
   const std::vector<float> analytic = grads;
-  float* p = ac.params().values();
-  // Central differences with a small step: ReLU kinks crossed by the perturbation bias larger steps (the
-  // error shrinks linearly with the step), float rounding limits smaller ones to a few 1e-3. Coordinates
-  // where two step sizes disagree sit on a kink and are skipped.
-  auto central = [&](size_t k, float h) {
-    const float v = p[k];
-    p[k] = v + h;
-    const double lp = eval();
-    p[k] = v - h;
-    const double lm = eval();
-    p[k] = v;
-    return (lp - lm) / (static_cast<double>(v + h) - static_cast<double>(v - h));
-  };
   int slices_checked = 0, coords = 0, skipped = 0;
   double total_err2 = 0.0, total_ref2 = 0.0;
-  for (const ParamSlice& s : ac.params().layout().slices()) {
-    double err2 = 0.0, ref2 = 0.0;
-    const size_t step = std::max<size_t>(1, s.size() / 6);
-    for (size_t i = 0; i < s.size(); i += step) {
-      const size_t k = s.offset + i;
-      const double fd1 = central(k, 5e-4f);
-      const double fd2 = central(k, 2.5e-4f);
-      ++coords;
-      if (std::fabs(fd1 - fd2) > 4e-3 + 2e-2 * std::fabs(fd2)) {
-        ++skipped;
-        continue;
-      }
-      err2 += (fd2 - analytic[k]) * (fd2 - analytic[k]);
-      ref2 += fd2 * fd2;
-    }
-    total_err2 += err2;
-    total_ref2 += ref2;
-    if (ref2 < 1e-6) continue;
+  for (const testing::SliceCheck& c :
+       testing::check_param_gradient(ac.params().values(), ac.params().layout(), analytic, 6, eval)) {
+    coords += c.coords;
+    skipped += c.skipped;
+    total_err2 += c.err2;
+    total_ref2 += c.ref2;
+    if (c.ref2 < 1e-6) continue;
     ++slices_checked;
-    EXPECT_LT(std::sqrt(err2), 0.02 * std::sqrt(ref2) + 4e-3) << s.name;
+    EXPECT_LT(std::sqrt(c.err2), 0.02 * std::sqrt(c.ref2) + 4e-3) << c.name;
   }
   EXPECT_LT(std::sqrt(total_err2), 0.005 * std::sqrt(total_ref2));
   EXPECT_GT(slices_checked, 50);

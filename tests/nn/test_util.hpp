@@ -1,6 +1,7 @@
 // Helpers shared by the nn tests: deterministic random data and central-difference gradient checks.
 #pragma once
 
+#include "nn/entity_net.hpp"
 #include "nn/params.hpp"
 
 #include <gtest/gtest.h>
@@ -12,6 +13,69 @@
 #include <vector>
 
 namespace hns::nn::testing {
+
+// A network with the paper's structure and tiny widths (fast to check exhaustively).
+inline NetConfig tiny_net_config() {
+  NetConfig c;
+  c.obs.self_features = 4;
+  c.obs.max_agents = 3;
+  c.obs.agent_features = 3;
+  c.obs.max_boxes = 2;
+  c.obs.box_features = 5;
+  c.obs.max_ramps = 1;
+  c.obs.ramp_features = 4;
+  c.obs.lidar_rays = 8;
+  c.lidar_filters = 3;
+  c.embed = 8;
+  c.heads = 2;
+  c.dense = 10;
+  c.lstm = 6;
+  c.action_heads = {3, 2};
+  return c;
+}
+
+// Central differences of loss() w.r.t. the flat parameters p, compared with the analytic gradient, at about
+// `per_slice` evenly spread coordinates of every slice of `layout`. Two step sizes: ReLU and clipping kinks
+// crossed by the perturbation bias larger steps (the error shrinks linearly with the step), float rounding
+// limits smaller ones to a few 1e-3; a coordinate where the two disagree sits on a kink and is skipped.
+struct SliceCheck {
+  std::string name;
+  double err2 = 0.0;  // sum of (fd - analytic)^2
+  double ref2 = 0.0;  // sum of fd^2
+  int coords = 0, skipped = 0;
+};
+inline std::vector<SliceCheck> check_param_gradient(float* p, const ParamLayout& layout,
+                                                    const std::vector<float>& analytic, size_t per_slice,
+                                                    const std::function<double()>& loss) {
+  auto central = [&](size_t k, float h) {
+    const float v = p[k];
+    p[k] = v + h;
+    const double lp = loss();
+    p[k] = v - h;
+    const double lm = loss();
+    p[k] = v;
+    return (lp - lm) / (static_cast<double>(v + h) - static_cast<double>(v - h));
+  };
+  std::vector<SliceCheck> out;
+  for (const ParamSlice& s : layout.slices()) {
+    SliceCheck c{s.name};
+    const size_t step = std::max<size_t>(1, s.size() / per_slice);
+    for (size_t i = 0; i < s.size(); i += step) {
+      const size_t k = s.offset + i;
+      const double fd1 = central(k, 5e-4f);
+      const double fd2 = central(k, 2.5e-4f);
+      ++c.coords;
+      if (std::fabs(fd1 - fd2) > 4e-3 + 2e-2 * std::fabs(fd2)) {
+        ++c.skipped;
+        continue;
+      }
+      c.err2 += (fd2 - analytic[k]) * (fd2 - analytic[k]);
+      c.ref2 += fd2 * fd2;
+    }
+    out.push_back(c);
+  }
+  return out;
+}
 
 // Uniform floats in [lo, hi) from a fixed stream.
 inline std::vector<float> random_vector(size_t n, uint64_t seed, float lo = -1.0f, float hi = 1.0f) {

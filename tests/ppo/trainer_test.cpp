@@ -145,6 +145,28 @@ TEST(Trainer, BitIdenticalForAnyThreadCount) {
   EXPECT_EQ(params_of(a), params_of(b));
 }
 
+// With one epoch of one minibatch the update sees exactly the rollout's parameters and normalisation, so
+// the log-probabilities it recomputes (BPTT chunks of 10 steps, training chunk sizes) equal those the
+// rollout sampled with (one step at a time): every ratio is 1, the KL estimate 0, nothing clipped. In later
+// iterations too (the observation normaliser moves only after the update), and with padding agents.
+TEST(Trainer, FirstMinibatchRecomputesTheRolloutsLogProbabilities) {
+  TrainConfig full = tiny_quadrant();
+  full.scene = "full";
+  full.horizon = 30;
+  full.envs = 2;
+  for (TrainConfig config : {tiny_quadrant(), full}) {
+    config.epochs = 1;
+    config.minibatches = 1;
+    Trainer t(config);
+    for (int i = 0; i < 3; ++i) {
+      const IterationMetrics m = t.iterate();
+      EXPECT_EQ(m.approx_kl, 0.0) << config.scene << ", iteration " << i + 1;
+      EXPECT_EQ(m.clip_frac, 0.0) << config.scene << ", iteration " << i + 1;
+      EXPECT_GT(m.entropy, 1.0);
+    }
+  }
+}
+
 // An iteration's metrics line without its timings (wall seconds, rates and the time split).
 std::string metrics_but_timings(const IterationMetrics& m) {
   IterationMetrics untimed = m;
