@@ -249,8 +249,13 @@ void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMa
 // --------------------------------------------------------------------------------------------
 
 void SelfAttention::Buffers::bind(Arena& arena) {
-  const size_t n = static_cast<size_t>(rows) * entities;
+  // Compact rows are padded to a multiple of kCompactRowAlign.
+  const size_t n = static_cast<size_t>(rows) * entities + kCompactRowAlign;
   const size_t dh = width / heads;
+  live = arena.take_ints(n);
+  offset = arena.take_ints(static_cast<size_t>(rows) + 1);
+  ones = arena.take(entities);
+  xc = arena.take(n * width);
   xn = arena.take(n * width);
   ln_pre = arena.take(n * 2);
   qk = arena.take(n * 2 * width);
@@ -260,6 +265,7 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   probs = arena.take(n * heads * entities);
   att = arena.take(n * width);
   res = arena.take(n * width);
+  out_c = arena.take(n * width);
   ln_post = arena.take(n * 2);
   d_xn = arena.take(n * width);
   d_qk = arena.take(n * 2 * width);
@@ -289,25 +295,63 @@ double SelfAttention::flops(int rows, int entities) const {
   return qk_.flops(n) + v_.flops(n) + mlp1_.flops(n) + 2.0 * 2.0 * rows * entities * entities * width_;
 }
 
+namespace {
+
+// Compact row i of src to row live[i] of dst, zeros to the rows of masked entities.
+void scatter_compact(CMat src, const int32_t* live, int n, const float* mask, Mat dst) {
+  for (int i = 0; i < n; ++i) std::memcpy(dst.row(live[i]), src.row(i), sizeof(float) * dst.cols);
+  for (int k = 0; k < dst.rows; ++k)
+    if (mask[k] == 0.0f) std::memset(dst.row(k), 0, sizeof(float) * dst.cols);
+}
+
+// Rows [n, n_pad) of m zeroed.
+void zero_rows(Mat m, int n, int n_pad) {
+  for (int i = n; i < n_pad; ++i) std::memset(m.row(i), 0, sizeof(float) * m.cols);
+}
+
+}  // namespace
+
 void SelfAttention::forward(const float* params, CMat x, const float* mask, int entities, Buffers& bufs,
                             Mat out) const {
-  const int n = x.rows;
-  const int rows = n / entities;
+  const int rows = x.rows / entities;
   const int d = width_;
   const ptrdiff_t dh = d / heads_;
   const ptrdiff_t e_count = entities;
-  CMat xin = x;
+  // The unmasked entities of every row, gathered into compact rows.
+  int n = 0;
+  for (int r = 0; r < rows; ++r) {
+    bufs.offset[r] = n;
+    for (int e = 0; e < entities; ++e) {
+      const int k = r * entities + e;
+      if (mask[k] == 0.0f) continue;
+      bufs.live[n] = k;
+      std::memcpy(bufs.xc + static_cast<ptrdiff_t>(n) * d, x.row(k), sizeof(float) * d);
+      ++n;
+    }
+  }
+  bufs.offset[rows] = n;
+  bufs.live_count = n;
+  const int n_real = n;
+  // Padding rows (zeros, results unused) make the products' row count a multiple of kCompactRowAlign.
+  n = (n + kCompactRowAlign - 1) / kCompactRowAlign * kCompactRowAlign;
+  zero_rows(Mat(bufs.xc, n, d), n_real, n);
+  zero_rows(Mat(bufs.att, n, d), n_real, n);
+  for (int e = 0; e < entities; ++e) bufs.ones[e] = 1.0f;
+  const CMat xc(bufs.xc, n, d);
+  CMat xin = xc;
   if (pre_ln_) {
-    ln_pre_.forward(params, x, Mat(bufs.xn, n, d), bufs.ln_pre);
+    ln_pre_.forward(params, xc, Mat(bufs.xn, n, d), bufs.ln_pre);
     xin = CMat(bufs.xn, n, d);
   }
   qk_.forward(params, xin, Mat(bufs.qk, n, 2 * d));
   v_.forward(params, xin, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   for (int r = 0; r < rows; ++r) {
-    // De-interleave q = qk[..., 0], k = qk[..., 1] into per-head [E, dh] blocks.
-    for (int e = 0; e < e_count; ++e) {
-      const float* src = bufs.qk + static_cast<ptrdiff_t>(r * e_count + e) * 2 * d;
+    const ptrdiff_t c0 = bufs.offset[r];
+    const int m = bufs.offset[r + 1] - bufs.offset[r];
+    // De-interleave q = qk[..., 0], k = qk[..., 1] into per-head [m, dh] blocks.
+    for (int e = 0; e < m; ++e) {
+      const float* src = bufs.qk + (c0 + e) * 2 * d;
       for (int h = 0; h < heads_; ++h) {
         float* qd = bufs.q + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
         float* kd = bufs.k + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
@@ -317,82 +361,80 @@ void SelfAttention::forward(const float* params, CMat x, const float* mask, int 
         }
       }
     }
-    const float* mask_r = mask + static_cast<ptrdiff_t>(r) * e_count;
     for (int h = 0; h < heads_; ++h) {
       const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
-      for (int i = 0; i < e_count; ++i) {
+      for (int i = 0; i < m; ++i) {
         float* pi = p + i * e_count;
-        for (int j = 0; j < e_count; ++j) pi[j] = dot(qh + i * dh, kh + j * dh, dh);
-        kernels::masked_softmax(pi, mask_r, scale, e_count, pi);
-        float* o = bufs.att + static_cast<ptrdiff_t>(r * e_count + i) * d + h * dh;
+        for (int j = 0; j < m; ++j) pi[j] = dot(qh + i * dh, kh + j * dh, dh);
+        kernels::masked_softmax(pi, bufs.ones, scale, m, pi);
+        float* o = bufs.att + (c0 + i) * d + h * dh;
         std::memset(o, 0, sizeof(float) * dh);
-        for (int j = 0; j < e_count; ++j)
-          if (pi[j] != 0.0f)
-            axpy(pi[j], bufs.v + static_cast<ptrdiff_t>(r * e_count + j) * d + h * dh, o, dh);
+        for (int j = 0; j < m; ++j) axpy(pi[j], bufs.v + (c0 + j) * d + h * dh, o, dh);
       }
     }
   }
-  // res = x + mlp1(att); out = LN_post(res).
+  // res = x + mlp1(att); out = LN_post(res), compact, then moved to the entities' rows.
   Mat res(bufs.res, n, d);
   mlp1_.forward(params, CMat(bufs.att, n, d), res);
-  for (int i = 0; i < n; ++i) add_row(res.row(i), x.row(i), d);
+  for (int i = 0; i < n; ++i) add_row(res.row(i), xc.row(i), d);
+  const Mat out_c(bufs.out_c, n, d);
   if (post_ln_) {
-    ln_post_.forward(params, res, out, bufs.ln_post);
+    ln_post_.forward(params, res, out_c, bufs.ln_post);
   } else {
-    copy_mat(res, out);
+    copy_mat(res, out_c);
   }
+  scatter_compact(out_c, bufs.live, n_real, mask, out);
 }
 
-void SelfAttention::backward(const float* params, float* grads, CMat x, const float* /*mask*/, int entities,
+void SelfAttention::backward(const float* params, float* grads, CMat x, const float* mask, int entities,
                              Buffers& bufs, CMat /*out*/, CMat dout, Mat dx) const {
-  const int n = x.rows;
-  const int rows = n / entities;
+  const int rows = x.rows / entities;
+  const int n_real = bufs.live_count;
+  const int n = (n_real + kCompactRowAlign - 1) / kCompactRowAlign * kCompactRowAlign;
   const int d = width_;
   const ptrdiff_t dh = d / heads_;
   const ptrdiff_t e_count = entities;
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  // The output gradient of the unmasked entities, compact (a masked entity's output is unused).
   Mat d_res(bufs.d_res, n, d);
-  if (post_ln_) {
-    ln_post_.backward(params, grads, CMat(bufs.res, n, d), bufs.ln_post, dout, d_res);
-  } else {
-    copy_mat(dout, d_res);
-  }
+  for (int i = 0; i < n_real; ++i) std::memcpy(d_res.row(i), dout.row(bufs.live[i]), sizeof(float) * d);
+  zero_rows(d_res, n_real, n);
+  zero_rows(Mat(bufs.d_qk, n, 2 * d), n_real, n);
+  if (post_ln_) ln_post_.backward(params, grads, CMat(bufs.res, n, d), bufs.ln_post, d_res, d_res);
   mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
   zero_mat(Mat(bufs.d_v, n, d));
   for (int r = 0; r < rows; ++r) {
+    const ptrdiff_t c0 = bufs.offset[r];
+    const int m = bufs.offset[r + 1] - bufs.offset[r];
     for (int h = 0; h < heads_; ++h) {
       const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
-      std::memset(bufs.d_qh, 0, sizeof(float) * e_count * dh);
-      std::memset(bufs.d_kh, 0, sizeof(float) * e_count * dh);
-      for (int i = 0; i < e_count; ++i) {
+      std::memset(bufs.d_qh, 0, sizeof(float) * m * dh);
+      std::memset(bufs.d_kh, 0, sizeof(float) * m * dh);
+      for (int i = 0; i < m; ++i) {
         const float* pi = p + i * e_count;
-        const float* da = bufs.d_att + static_cast<ptrdiff_t>(r * e_count + i) * d + h * dh;
+        const float* da = bufs.d_att + (c0 + i) * d + h * dh;
         float* dpi = bufs.d_p + i * e_count;
-        // dp[i, j] = da_i . v_j and dv_j += p[i, j] da_i (masked keys have p = 0 and get no gradient).
-        for (int j = 0; j < e_count; ++j) {
-          if (pi[j] == 0.0f) {
-            dpi[j] = 0.0f;
-            continue;
-          }
-          const ptrdiff_t vrow = static_cast<ptrdiff_t>(r * e_count + j) * d + h * dh;
+        // dp[i, j] = da_i . v_j and dv_j += p[i, j] da_i.
+        for (int j = 0; j < m; ++j) {
+          const ptrdiff_t vrow = (c0 + j) * d + h * dh;
           dpi[j] = dot(da, bufs.v + vrow, dh);
           axpy(pi[j], da, bufs.d_v + vrow, dh);
         }
-        kernels::masked_softmax_backward(pi, dpi, scale, e_count, dpi);
+        kernels::masked_softmax_backward(pi, dpi, scale, m, dpi);
         // dq_i = sum_j dl[i, j] k_j; dk_j += dl[i, j] q_i.
-        for (int j = 0; j < e_count; ++j) {
+        for (int j = 0; j < m; ++j) {
           if (dpi[j] == 0.0f) continue;
           axpy(dpi[j], kh + j * dh, bufs.d_qh + i * dh, dh);
           axpy(dpi[j], qh + i * dh, bufs.d_kh + j * dh, dh);
         }
       }
       // Re-interleave into d_qk.
-      for (int e = 0; e < e_count; ++e) {
-        float* dst = bufs.d_qk + static_cast<ptrdiff_t>(r * e_count + e) * 2 * d;
+      for (int e = 0; e < m; ++e) {
+        float* dst = bufs.d_qk + (c0 + e) * 2 * d;
         for (int i = 0; i < dh; ++i) {
           dst[(h * dh + i) * 2] = bufs.d_qh[e * dh + i];
           dst[(h * dh + i) * 2 + 1] = bufs.d_kh[e * dh + i];
@@ -400,16 +442,15 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
       }
     }
   }
-  CMat xin = pre_ln_ ? CMat(bufs.xn, n, d) : x;
+  const CMat xc(bufs.xc, n, d);
+  const CMat xin = pre_ln_ ? CMat(bufs.xn, n, d) : xc;
   Mat d_xn(bufs.d_xn, n, d);
   qk_.backward_preact(params, grads, xin, CMat(bufs.d_qk, n, 2 * d), d_xn, false);
   v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
-  if (pre_ln_) {
-    ln_pre_.backward(params, grads, x, bufs.ln_pre, d_xn, dx);
-  } else {
-    copy_mat(d_xn, dx);
-  }
-  for (int i = 0; i < n; ++i) add_row(dx.row(i), d_res.row(i), d);
+  // dx: compact first (in d_xn; the residual path included), then moved to the entities' rows.
+  if (pre_ln_) ln_pre_.backward(params, grads, xc, bufs.ln_pre, d_xn, d_xn);
+  for (int i = 0; i < n_real; ++i) add_row(d_xn.row(i), d_res.row(i), d);
+  scatter_compact(d_xn, bufs.live, n_real, mask, dx);
 }
 
 // ---- Masked mean pooling

@@ -159,30 +159,46 @@ class EntityEmbedding {
 //   xn = LN_pre(x) (optional); qk = xn Wqk + bqk (interleaved: q = [..., 0], k = [..., 1] of
 //   [E, heads, dh, 2]); v = xn Wv + bv; p = masked_softmax(q k^T / sqrt(dh)) over keys;
 //   att = concat_h(p v); res = x + att Wo + bo; out = LN_post(res) (optional).
-// x, out: [rows * E, width]; mask [rows, E] (0/1 per key entity, shared by all queries).
+// x, out: [rows * E, width]; mask [rows, E] (0/1 per entity, shared by all queries).
+// A masked entity is neither a key nor a query: the network pools over unmasked entities only, so a masked
+// query's output is never used. Its work is skipped entirely: the unmasked entities of all rows are
+// gathered into compact rows first (every product and norm runs on those), a masked entity's output is 0
+// and it gets no gradient.
 class SelfAttention {
  public:
-  // Activations kept for backward, and backward scratch, for `rows` rows of E entities.
+  // The compact row count is padded to a multiple of this with zero rows: Eigen's GEMM runs a row count
+  // that is not a multiple of its 4-column panels through another kernel, whose sums round differently,
+  // and a row's result must not depend on how many entities the other rows see (the rollout's one-step
+  // inference and the training chunks must agree to the bit).
+  static constexpr int kCompactRowAlign = 8;
+  // Activations kept for backward, and backward scratch, for `rows` rows of E entities. The per-entity
+  // buffers hold the compact rows (n_live <= rows * E of them, in row and then entity order).
   struct Buffers {
     int rows = 0, entities = 0, width = 0, heads = 0;
-    float* xn = nullptr;       // [rows * E, width] LN_pre output (or unused if no pre LN)
-    float* ln_pre = nullptr;   // [rows * E, 2] stats
-    float* qk = nullptr;       // [rows * E, 2 * width]
-    float* v = nullptr;        // [rows * E, width]
-    float* q = nullptr;        // [rows, heads, E, dh] de-interleaved queries
-    float* k = nullptr;        // [rows, heads, E, dh] de-interleaved keys
-    float* probs = nullptr;    // [rows, heads, E, E]
-    float* att = nullptr;      // [rows * E, width] heads concatenated
-    float* res = nullptr;      // [rows * E, width] residual sum (before LN_post)
-    float* ln_post = nullptr;  // [rows * E, 2]
-    float* d_xn = nullptr;     // [rows * E, width]
-    float* d_qk = nullptr;     // [rows * E, 2 * width]
-    float* d_v = nullptr;      // [rows * E, width]
-    float* d_att = nullptr;    // [rows * E, width]
-    float* d_res = nullptr;    // [rows * E, width]
-    float* d_qh = nullptr;     // [E, dh] one head's query gradient
-    float* d_kh = nullptr;     // [E, dh]
-    float* d_p = nullptr;      // [E, E]
+    int live_count = 0;         // n_live of the last forward
+    int32_t* live = nullptr;    // [rows * E] entity row (r * E + e) of each compact row
+    int32_t* offset = nullptr;  // [rows + 1] compact rows of row r: [offset[r], offset[r + 1])
+    float* ones = nullptr;      // [E] all 1: the softmax mask of compact rows
+    float* xc = nullptr;        // [rows * E, width] x gathered
+    float* xn = nullptr;        // [rows * E, width] LN_pre output (or unused if no pre LN)
+    float* ln_pre = nullptr;    // [rows * E, 2] stats
+    float* qk = nullptr;        // [rows * E, 2 * width]
+    float* v = nullptr;         // [rows * E, width]
+    float* q = nullptr;         // [rows, heads, E, dh] de-interleaved queries
+    float* k = nullptr;         // [rows, heads, E, dh] de-interleaved keys
+    float* probs = nullptr;     // [rows, heads, E, E]
+    float* att = nullptr;       // [rows * E, width] heads concatenated
+    float* res = nullptr;       // [rows * E, width] residual sum (before LN_post)
+    float* out_c = nullptr;     // [rows * E, width] LN_post output, compact
+    float* ln_post = nullptr;   // [rows * E, 2]
+    float* d_xn = nullptr;      // [rows * E, width]
+    float* d_qk = nullptr;      // [rows * E, 2 * width]
+    float* d_v = nullptr;       // [rows * E, width]
+    float* d_att = nullptr;     // [rows * E, width]
+    float* d_res = nullptr;     // [rows * E, width]
+    float* d_qh = nullptr;      // [E, dh] one head's query gradient
+    float* d_kh = nullptr;      // [E, dh]
+    float* d_p = nullptr;       // [E, E]
     Buffers() = default;
     Buffers(int rows, int entities, int width, int heads)
         : rows(rows), entities(entities), width(width), heads(heads) {}

@@ -7,6 +7,7 @@
 
 #include <cassert>
 #include <cstddef>
+#include <cstdint>
 #include <cstdlib>
 #include <cstring>
 #include <new>
@@ -129,6 +130,8 @@ class Arena {
     HNS_NN_CHECK(base_ == nullptr || used_ <= capacity_, "workspace arena overflow");
     return p;
   }
+  // n int32 (index lists next to the activations; the storage is raw memory, only ever read as int32).
+  int32_t* take_ints(size_t n) { return reinterpret_cast<int32_t*>(take(n)); }
   size_t used() const { return used_; }
 
  private:

@@ -271,7 +271,12 @@ std::vector<double> ref_attention(const double* x, const double* p, const ParamS
       }
   auto res = ref_dense(att.data(), p + off(s, "a/mlp1/w"), p + off(s, "a/mlp1/b"), n, d, d, false);
   for (size_t i = 0; i < res.size(); ++i) res[i] += x[i];
-  return ref_layer_norm(res.data(), p + off(s, "a/ln_post/gain"), p + off(s, "a/ln_post/bias"), n, d);
+  auto out = ref_layer_norm(res.data(), p + off(s, "a/ln_post/gain"), p + off(s, "a/ln_post/bias"), n, d);
+  // A masked entity is no query either: its output is 0.
+  for (int i = 0; i < n; ++i)
+    if (mask[i] == 0.0f)
+      std::fill(out.begin() + static_cast<ptrdiff_t>(i) * d, out.begin() + (i + 1) * d, 0.0);
+  return out;
 }
 
 TEST(NnLayers, SelfAttentionBackwardMatchesFiniteDifferences) {
