@@ -17,6 +17,7 @@
 #include "nn/kernels.hpp"
 #include "nn/nn_bench.hpp"
 #include "physics/presets.hpp"
+#include "ppo/obs_arrays.hpp"
 
 namespace hns::tools {
 namespace {
@@ -34,8 +35,18 @@ struct BenchOptions {
   std::optional<int> hiders, seekers, boxes, ramps, substeps;
   std::string json;
   std::string profile;
-  std::string nn;  // "paper" or "small": time the networks instead of the simulator
+  std::string nn;                   // "paper" or "small": time the networks instead of the simulator
+  std::string masks = "synthetic";  // --nn inputs: synthetic, or a scene's shape and mask densities
 };
+
+// Uniformly random bins for every action head.
+void random_actions(phys::Rng& rng, std::vector<phys::AgentAction>& actions) {
+  for (phys::AgentAction& a : actions) {
+    a = phys::AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                          uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                          uint8_t(rng.uniform_int(0, 2))};
+  }
+}
 
 constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep profiled runs short
 
@@ -75,11 +86,7 @@ int run_bench(const BenchOptions& opt) {
   const auto start = Clock::now();
   auto last_report = start;
   for (int s = 0; s < opt.steps; ++s) {
-    for (phys::AgentAction& a : actions) {
-      a = phys::AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
-                            uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
-                            uint8_t(rng.uniform_int(0, 2))};
-    }
+    random_actions(rng, actions);
     for (int e = 0; e < opt.envs; ++e) agent_steps += sim.world(e).num_agents();
     sim.step(actions);
     episodes += int64_t(sim.finished().size());
@@ -137,24 +144,80 @@ int run_bench(const BenchOptions& opt) {
   return 0;
 }
 
-// Throughput of the policy + value networks on synthetic full-scene observations (`--nn MODEL`).
+// The observation shape of `scene` and the density of its masks over 16 envs x 2 episodes of uniformly
+// random actions (what the networks see at the start of training): per entity type, how often a slot holds
+// an entity and how often a present entity is seen, over the agents that exist.
+void measure_scene_masks(const std::string& scene, uint64_t seed, hns::nn::NnBenchOptions& o) {
+  namespace hb = hns::batch;
+  hb::BatchConfig config;
+  config.world = phys::world_preset(scene);
+  config.num_envs = 16;
+  config.threads = o.threads;
+  config.seed = seed;
+  hb::BatchSim sim(config);
+  const hb::Layout& L = sim.layout();
+  o.shape = hns::ppo::obs_shape(L);
+  std::vector<phys::AgentAction> actions(size_t(config.num_envs) * L.max_agents);
+  phys::Rng rng(seed, 0xAC7105, 1);
+  double slots[3] = {}, present[3] = {}, seen[3] = {};
+  const hb::BatchState& st = sim.state();
+  for (int step = 0; step < 2 * config.world.horizon; ++step) {
+    random_actions(rng, actions);
+    sim.step(actions);
+    for (int e = 0; e < config.num_envs; ++e)
+      for (int a = 0; a < L.max_agents; ++a) {
+        const size_t row = size_t(e) * L.max_agents + a;
+        if (st.agent_exists.data()[row] == 0) continue;
+        auto count = [&](int type, const uint8_t* value_mask, const uint8_t* policy_mask, int n) {
+          for (int j = 0; j < n; ++j) {
+            slots[type] += 1;
+            present[type] += value_mask[row * n + j];
+            seen[type] += policy_mask[row * n + j];
+          }
+        };
+        count(0, st.value_mask_agents.data(), st.mask_agents.data(), L.others);
+        count(1, st.value_mask_boxes.data(), st.mask_boxes.data(), L.max_boxes);
+        count(2, st.value_mask_ramps.data(), st.mask_ramps.data(), L.max_ramps);
+      }
+  }
+  auto ratio = [](double a, double b) { return b > 0 ? a / b : 0.0; };
+  hns::nn::MaskDensity& d = o.masks;
+  d.name = scene;
+  d.alternate_last_box = false;
+  d.agents_present = ratio(present[0], slots[0]), d.agents_seen = ratio(seen[0], present[0]);
+  d.boxes_present = ratio(present[1], slots[1]), d.boxes_seen = ratio(seen[1], present[1]);
+  d.ramps_present = ratio(present[2], slots[2]), d.ramps_seen = ratio(seen[2], present[2]);
+}
+
+// Throughput of the policy + value networks (`--nn MODEL`) on synthetic observations: full-scene shaped with
+// 60 % of entities seen, or shaped and masked like `--masks SCENE`.
 int run_nn_bench(const BenchOptions& opt) {
   hns::nn::NnBenchOptions o;
   o.model = opt.nn;
   o.threads = usable_threads(opt.threads);
   o.seed = opt.seed;
+  if (opt.masks != "synthetic") measure_scene_masks(opt.masks, opt.seed, o);
   if (!opt.json.empty()) check_output_path("--json", opt.json);
   std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
               opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences,
               o.train_steps);
   std::printf("  instruction set         %s\n", hns::nn::kernels::isa_description().c_str());
+  const hns::nn::MaskDensity& d = o.masks;
+  std::printf(
+      "  inputs                  %s: %d other agents, %d boxes, %d ramps; present %.0f/%.0f/%.0f %%, seen "
+      "%.0f/%.0f/%.0f %% of present\n",
+      d.name.c_str(), o.shape.num_other_agents(), o.shape.max_boxes, o.shape.max_ramps,
+      100 * d.agents_present, 100 * d.boxes_present, 100 * d.ramps_present, 100 * d.agents_seen,
+      100 * d.boxes_seen, 100 * d.ramps_seen);
   std::fflush(stdout);
   const hns::nn::NnBenchResult r = hns::nn::run_nn_bench(o);
   std::printf("  parameters              %12zu (policy + value)\n", r.params);
-  std::printf("  inference agent-steps/s %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM)\n", r.infer_agent_steps_per_s,
-              r.infer_gflops, 100 * r.infer_gflops / r.gemm_gflops);
-  std::printf("  training agent-steps/s  %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM)\n", r.train_agent_steps_per_s,
-              r.train_gflops, 100 * r.train_gflops / r.gemm_gflops);
+  std::printf("  inference agent-steps/s %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM), useful %.1f GFLOP/s\n",
+              r.infer_agent_steps_per_s, r.infer_gflops, 100 * r.infer_gflops / r.gemm_gflops,
+              r.infer_useful_gflops);
+  std::printf("  training agent-steps/s  %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM), useful %.1f GFLOP/s\n",
+              r.train_agent_steps_per_s, r.train_gflops, 100 * r.train_gflops / r.gemm_gflops,
+              r.train_useful_gflops);
   std::printf("  Eigen GEMM reference                  %7.1f GFLOP/s\n", r.gemm_gflops);
   if (!opt.json.empty()) {
     const nlohmann::json j = {{"model", r.model},
@@ -165,6 +228,9 @@ int run_nn_bench(const BenchOptions& opt) {
                               {"train_agent_steps_per_s", r.train_agent_steps_per_s},
                               {"infer_gflops", r.infer_gflops},
                               {"train_gflops", r.train_gflops},
+                              {"infer_useful_gflops", r.infer_useful_gflops},
+                              {"train_useful_gflops", r.train_useful_gflops},
+                              {"masks", r.masks},
                               {"gemm_gflops", r.gemm_gflops},
                               {"infer_seconds", r.infer_seconds},
                               {"train_seconds", r.train_seconds}};
@@ -203,8 +269,18 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
                   "Write a per-phase Chrome trace (JSON) of a short run to this file");
   cmd->add_option("--nn", opt->nn, "Time the policy + value networks of this model instead of the simulator")
       ->check(CLI::IsMember({"paper", "small"}));
+  cmd->add_option(
+         "--masks", opt->masks,
+         "With --nn: synthetic inputs (full-scene shape, 60 % seen), or the shape and mask density of "
+         "random-action episodes of this scene")
+      ->check(CLI::IsMember({"synthetic", "quadrant", "full"}))
+      ->capture_default_str();
   commands.push_back({cmd, [opt] {
                         opt->seed = parse_seed("--seed", opt->seed_text);
+                        if (opt->nn.empty() && opt->masks != "synthetic")
+                          throw phys::ConfigError(
+                              "--masks " + opt->masks +
+                              " is invalid without --nn (it chooses the network's inputs)");
                         return opt->nn.empty() ? run_bench(*opt) : run_nn_bench(*opt);
                       }});
 }

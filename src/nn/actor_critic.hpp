@@ -88,6 +88,11 @@ class ActorCritic {
   int state_width() const { return 2 * cfg_.lstm; }
   // Multiply-add flops of policy + value forward over `rows` agent-steps (backward: twice that).
   double forward_flops(int rows) const { return policy_.forward_flops(rows) + value_.forward_flops(rows); }
+  // The same counting only the entities each network sees (ObsBatch's seen and present masks).
+  double forward_flops_used(const ObsBatch& obs, int rows) const {
+    return policy_.forward_flops_used(obs.policy_inputs(), rows) +
+           value_.forward_flops_used(obs.value_inputs(), rows);
+  }
 
   // Outputs of one inference step ([agents, ...]; logits may be null).
   struct ActOutputs {

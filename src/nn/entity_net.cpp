@@ -102,13 +102,47 @@ EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, co
   }
 }
 
+namespace {
+
+// Entities of one type with mask 1 over rows x count slots (all of them for a null mask).
+double count_unmasked(const float* mask, int rows, int count) {
+  if (mask == nullptr) return double(rows) * count;
+  double n = 0;
+  for (ptrdiff_t i = 0; i < ptrdiff_t(rows) * count; ++i) n += mask[i] != 0.0f;
+  return n;
+}
+
+}  // namespace
+
 double EntityNet::forward_flops(int rows) const {
   const ObsShape& o = cfg_.obs;
   double f = conv_.flops(rows) + self_embed_.flops(rows);
-  if (o.num_other_agents() > 0) f += agents_embed_.flops(rows, o.num_other_agents());
-  if (o.max_boxes > 0) f += boxes_embed_.flops(rows, o.max_boxes);
-  if (o.max_ramps > 0) f += ramps_embed_.flops(rows, o.max_ramps);
-  f += attention_.flops(rows, o.num_entities());
+  if (o.num_other_agents() > 0) f += agents_embed_.flops(rows, double(rows) * o.num_other_agents());
+  if (o.max_boxes > 0) f += boxes_embed_.flops(rows, double(rows) * o.max_boxes);
+  if (o.max_ramps > 0) f += ramps_embed_.flops(rows, double(rows) * o.max_ramps);
+  const double e = o.num_entities();
+  f += attention_.flops(rows * e, rows * e * e);
+  f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
+  return f;
+}
+
+double EntityNet::forward_flops_used(const NetInputs& in, int rows) const {
+  const ObsShape& o = cfg_.obs;
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+  double f = conv_.flops(rows) + self_embed_.flops(rows);
+  if (na > 0) f += agents_embed_.flops(rows, count_unmasked(in.agents_mask, rows, na));
+  if (nb > 0) f += boxes_embed_.flops(rows, count_unmasked(in.boxes_mask, rows, nb));
+  if (nr > 0) f += ramps_embed_.flops(rows, count_unmasked(in.ramps_mask, rows, nr));
+  double entities = 0, pairs = 0;
+  for (int r = 0; r < rows; ++r) {
+    const double n =
+        1 + count_unmasked(in.agents_mask == nullptr ? nullptr : in.agents_mask + ptrdiff_t(r) * na, 1, na) +
+        count_unmasked(in.boxes_mask == nullptr ? nullptr : in.boxes_mask + ptrdiff_t(r) * nb, 1, nb) +
+        count_unmasked(in.ramps_mask == nullptr ? nullptr : in.ramps_mask + ptrdiff_t(r) * nr, 1, nr);
+    entities += n;
+    pairs += n * n;
+  }
+  f += attention_.flops(entities, pairs);
   f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
   return f;
 }

@@ -133,6 +133,9 @@ class EntityNet {
   // Multiply-add flops of one forward pass over `rows` agent-steps (GEMMs, conv and attention products);
   // a backward pass is counted as twice that.
   double forward_flops(int rows) const;
+  // The same counting only unmasked entities (in's masks; null masks count every slot): the work that
+  // decides the outputs. Attention skips masked entities; the embeddings compute every slot.
+  double forward_flops_used(const NetInputs& in, int rows) const;
 
   // Forward over sequences x steps rows. state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
   // state_in null means zeros, state_out null means not written. Outputs: output(ws).

@@ -289,10 +289,9 @@ SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int w
   if (post_ln) ln_post_ = LayerNorm(layout, name + "/ln_post", width);
 }
 
-double SelfAttention::flops(int rows, int entities) const {
-  const int n = rows * entities;
+double SelfAttention::flops(double entity_rows, double pairs) const {
   // qk, v, mlp1 products plus q k^T and p v.
-  return qk_.flops(n) + v_.flops(n) + mlp1_.flops(n) + 2.0 * 2.0 * rows * entities * entities * width_;
+  return (qk_.flops(1) + v_.flops(1) + mlp1_.flops(1)) * entity_rows + 2.0 * 2.0 * pairs * width_;
 }
 
 namespace {

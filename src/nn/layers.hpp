@@ -136,8 +136,9 @@ class EntityEmbedding {
   EntityEmbedding(ParamLayout& layout, const std::string& name, int main_width, int features, int width);
 
   int features() const { return features_; }
-  double flops(int rows, int count) const {
-    return 2.0 * rows * main_width_ * width_ + 2.0 * rows * count * features_ * width_;
+  // rows agent-steps with `entities` entities of this type in all (rows x count, or only the unmasked ones).
+  double flops(int rows, double entities) const {
+    return 2.0 * rows * main_width_ * width_ + 2.0 * entities * features_ * width_;
   }
 
   // main [rows, main_width]; ent [rows * count, features]; scratch [rows, width]. Writes out's slots.
@@ -212,7 +213,8 @@ class SelfAttention {
 
   int width() const { return width_; }
   int heads() const { return heads_; }
-  double flops(int rows, int entities) const;
+  // `entity_rows` entities in all, `pairs` (query, key) pairs in all (sum over rows of entities squared).
+  double flops(double entity_rows, double pairs) const;
 
   void forward(const float* params, CMat x, const float* mask, int entities, Buffers& bufs, Mat out) const;
   // dout [rows * E, width] read; dx written (gradient w.r.t. x, residual path included).

@@ -15,13 +15,13 @@ namespace {
 
 constexpr int kMaxLossRows = 64;  // loss scratch rows on the stack
 
-// Synthetic observations for `rows` agent-steps: values in plausible ranges, about 60 % of entities seen, the
-// last box slot absent (padding) in every other row, resets at about 1 in 20 steps.
+// Synthetic observations for `rows` agent-steps: values in plausible ranges, masks drawn with the given
+// densities (a slot is seen only if present), resets at about 1 in 20 steps.
 struct SyntheticObs {
   std::vector<float> self, lidar, agents, boxes, ramps;
   std::vector<float> agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present, reset;
 
-  SyntheticObs(const ObsShape& s, int rows, uint64_t seed) {
+  SyntheticObs(const ObsShape& s, const MaskDensity& d, int rows, uint64_t seed) {
     InitRng rng(seed, 1);
     auto fill = [&](std::vector<float>& v, size_t n, double lo, double hi) {
       v.resize(n);
@@ -31,20 +31,24 @@ struct SyntheticObs {
       v.resize(n);
       for (auto& x : v) x = rng.uniform() < p ? 1.0f : 0.0f;
     };
+    // present ~ p_present; seen ~ p_seen among the present.
+    auto masks = [&](std::vector<float>& present, std::vector<float>& seen, size_t n, double p_present,
+                     double p_seen) {
+      mask(present, n, p_present);
+      mask(seen, n, p_seen);
+      for (size_t i = 0; i < n; ++i) seen[i] *= present[i];
+    };
     const size_t r = rows;
     fill(self, r * s.self_features, -3.0, 3.0);
     fill(lidar, r * s.lidar_rays, 0.0, 6.0);
     fill(agents, r * s.num_other_agents() * s.agent_features, -3.0, 3.0);
     fill(boxes, r * s.max_boxes * s.box_features, -3.0, 3.0);
     fill(ramps, r * s.max_ramps * s.ramp_features, -3.0, 3.0);
-    mask(agents_seen, r * s.num_other_agents(), 0.6);
-    mask(boxes_seen, r * s.max_boxes, 0.6);
-    mask(ramps_seen, r * s.max_ramps, 0.6);
-    agents_present.assign(r * s.num_other_agents(), 1.0f);
-    boxes_present.assign(r * s.max_boxes, 1.0f);
-    ramps_present.assign(r * s.max_ramps, 1.0f);
-    for (size_t i = 0; i < r; i += 2)
-      if (s.max_boxes > 0)
+    masks(agents_present, agents_seen, r * s.num_other_agents(), d.agents_present, d.agents_seen);
+    masks(boxes_present, boxes_seen, r * s.max_boxes, d.boxes_present, d.boxes_seen);
+    masks(ramps_present, ramps_seen, r * s.max_ramps, d.ramps_present, d.ramps_seen);
+    if (d.alternate_last_box && s.max_boxes > 0)
+      for (size_t i = 0; i < r; i += 2)
         boxes_present[i * s.max_boxes + s.max_boxes - 1] = boxes_seen[i * s.max_boxes + s.max_boxes - 1] =
             0.0f;
     mask(reset, r, 0.05);
@@ -91,7 +95,8 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
     throw std::invalid_argument("threads must be at least 1 (got " + std::to_string(o.threads) + ")");
   if (o.infer_agents < 1 || o.train_sequences < 1 || o.train_steps < 1)
     throw std::invalid_argument("benchmark batch sizes must be positive");
-  const NetConfig cfg = net_preset(o.model);
+  NetConfig cfg = net_preset(o.model);
+  cfg.obs = o.shape;
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(o.threads));
 
   ActorCritic ac(cfg, o.parallel);
@@ -100,19 +105,20 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
   res.model = o.model;
   res.threads = o.threads;
   res.params = ac.num_params();
+  res.masks = o.masks.name;
   const int nh = ac.heads().num_heads();
   const int sw = ac.state_width();
 
   // A normaliser fitted to the training data.
   const int train_rows = o.train_sequences * o.train_steps;
-  const SyntheticObs train_obs(cfg.obs, train_rows, o.seed + 1);
+  const SyntheticObs train_obs(cfg.obs, o.masks, train_rows, o.seed + 1);
   ObsNormalizer norm(cfg.obs);
   norm.update(train_obs.self.data(), train_obs.lidar.data(), train_obs.agents.data(), train_obs.boxes.data(),
               train_obs.ramps.data(), train_rows);
 
   // Inference: one step for infer_agents agents.
   {
-    const SyntheticObs obs(cfg.obs, o.infer_agents, o.seed + 2);
+    const SyntheticObs obs(cfg.obs, o.masks, o.infer_agents, o.seed + 2);
     std::vector<float> ps(static_cast<size_t>(o.infer_agents) * sw, 0.0f), vs(ps.size(), 0.0f);
     std::vector<float> uniforms(static_cast<size_t>(o.infer_agents) * nh);
     InitRng rng(o.seed, 3);
@@ -126,6 +132,7 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
     res.infer_flops_per_agent_step = ac.forward_flops(o.infer_agents) / o.infer_agents;
     res.infer_agent_steps_per_s = o.infer_agents / res.infer_seconds;
     res.infer_gflops = res.infer_flops_per_agent_step * res.infer_agent_steps_per_s * 1e-9;
+    res.infer_useful_gflops = ac.forward_flops_used(obs.batch(), o.infer_agents) / res.infer_seconds * 1e-9;
   }
 
   // Training: forward + backward + Adam over the minibatch, with a PPO-like loss.
@@ -172,6 +179,8 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
     res.train_flops_per_agent_step = 3.0 * ac.forward_flops(train_rows) / train_rows;
     res.train_agent_steps_per_s = train_rows / res.train_seconds;
     res.train_gflops = res.train_flops_per_agent_step * res.train_agent_steps_per_s * 1e-9;
+    res.train_useful_gflops =
+        3.0 * ac.forward_flops_used(train_obs.batch(), train_rows) / res.train_seconds * 1e-9;
   }
 
   // Eigen GEMM reference: one independent product per thread.

@@ -1,5 +1,6 @@
-// Throughput of the policy + value networks on synthetic observations shaped like the `full` scene (5 other
-// agents, 9 boxes, 2 ramps, 30 lidar rays), for `hns bench --nn paper|small --threads T`:
+// Throughput of the policy + value networks on synthetic observations (by default shaped like the `full`
+// scene: 5 other agents, 9 boxes, 2 ramps, 30 lidar rays; about 60 % of entities seen), for
+// `hns bench --nn paper|small --threads T [--masks synthetic|quadrant|full]`:
 //   inference: one step (policy + value forward, action sampling) for a batch of agents (default 1024);
 //   training:  forward + backward + Adam over a minibatch of BPTT chunks (default 256 x 10 steps), with a
 //              PPO-like loss (clipped-free surrogate, entropy bonus, value regression);
@@ -7,8 +8,9 @@
 //              independent product per thread, as the machine's peak reference.
 // FLOPs count 2 per multiply-add of the products actually performed (dense layers, conv, LSTM, attention
 // q.k and p.v; the x_self part of each entity embedding once per agent); a backward pass counts twice the
-// forward. Elementwise work (norms, softmax, gates) is not counted. Each figure is the median over repeated
-// timed runs of at least min_seconds in total.
+// forward. Elementwise work (norms, softmax, gates) is not counted. The plain figure counts every entity
+// slot (comparable across versions); the useful one only unmasked entities, whose work the network does. Each
+// figure is the median over repeated timed runs of at least min_seconds in total.
 #pragma once
 
 #include "nn/actor_critic.hpp"
@@ -18,13 +20,24 @@
 
 namespace hns::nn {
 
+// How often an entity slot holds an entity (present: the value net's mask) and how often a present one is
+// seen (the policy's mask), per entity type, for the synthetic observations.
+struct MaskDensity {
+  std::string name = "synthetic";  // where the figures come from (printed and in the JSON)
+  double agents_present = 1.0, boxes_present = 1.0, ramps_present = 1.0;
+  double agents_seen = 0.6, boxes_seen = 0.6, ramps_seen = 0.6;
+  bool alternate_last_box = true;  // the last box slot absent in every other row (the synthetic default)
+};
+
 struct NnBenchOptions {
   std::string model = "paper";  // preset name (net_preset)
-  int threads = 1;              // TBB threads (>= 1)
-  int infer_agents = 1024;      // agents per inference step
-  int train_sequences = 256;    // BPTT chunks per training minibatch
-  int train_steps = 10;         // steps per chunk
-  double min_seconds = 1.0;     // minimum timed duration of each of the three measurements
+  ObsShape shape;               // observation shape (default: the full scene's)
+  MaskDensity masks;
+  int threads = 1;            // TBB threads (>= 1)
+  int infer_agents = 1024;    // agents per inference step
+  int train_sequences = 256;  // BPTT chunks per training minibatch
+  int train_steps = 10;       // steps per chunk
+  double min_seconds = 1.0;   // minimum timed duration of each of the three measurements
   uint64_t seed = 1;
   ParallelConfig parallel;  // work partition (results do not depend on threads)
 };
@@ -35,9 +48,13 @@ struct NnBenchResult {
   size_t params = 0;  // policy + value
   double infer_agent_steps_per_s = 0.0;
   double train_agent_steps_per_s = 0.0;
+  std::string masks;          // MaskDensity::name
   double infer_gflops = 0.0;  // achieved, inference
   double train_gflops = 0.0;  // achieved, forward + backward (Adam not counted)
-  double gemm_gflops = 0.0;   // Eigen GEMM reference, all threads together
+  // Achieved counting only the FLOPs of entities that are used (unmasked): the useful rate.
+  double infer_useful_gflops = 0.0;
+  double train_useful_gflops = 0.0;
+  double gemm_gflops = 0.0;  // Eigen GEMM reference, all threads together
   double infer_flops_per_agent_step = 0.0;
   double train_flops_per_agent_step = 0.0;
   double infer_seconds = 0.0;  // median time of one inference step

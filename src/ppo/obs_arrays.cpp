@@ -4,6 +4,19 @@
 
 namespace hns::ppo {
 
+nn::ObsShape obs_shape(const batch::Layout& L) {
+  nn::ObsShape o;
+  o.self_features = batch::Layout::kSelfFeatures;
+  o.max_agents = L.max_agents;
+  o.agent_features = batch::Layout::kAgentFeatures;
+  o.max_boxes = L.max_boxes;
+  o.box_features = batch::Layout::kBoxFeatures;
+  o.max_ramps = L.max_ramps;
+  o.ramp_features = batch::Layout::kRampFeatures;
+  o.lidar_rays = batch::Layout::kLidar;
+  return o;
+}
+
 void ObsArrays::copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
   auto copy = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<float>& src, size_t per_row) {
     if (per_row > 0) std::memcpy(dst.data() + row0 * per_row, src.data(), sizeof(float) * rows * per_row);

@@ -7,6 +7,9 @@
 
 namespace hns::ppo {
 
+// The networks' observation shape for a batch of this layout.
+nn::ObsShape obs_shape(const batch::Layout& layout);
+
 // One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
 struct ObsArrays {
   // Copies the observations and masks of every agent row of the batch's current step (rows = envs x max

@@ -114,14 +114,7 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
   const batch::Layout& L = sim_->layout();
 
   nn::NetConfig nc = nn::net_preset(cfg_.model);
-  nc.obs.self_features = batch::Layout::kSelfFeatures;
-  nc.obs.max_agents = L.max_agents;
-  nc.obs.agent_features = batch::Layout::kAgentFeatures;
-  nc.obs.max_boxes = L.max_boxes;
-  nc.obs.box_features = batch::Layout::kBoxFeatures;
-  nc.obs.max_ramps = L.max_ramps;
-  nc.obs.ramp_features = batch::Layout::kRampFeatures;
-  nc.obs.lidar_rays = batch::Layout::kLidar;
+  nc.obs = obs_shape(L);
   net_ = std::make_unique<nn::ActorCritic>(nc);
   net_->params().init(cfg_.seed);
   nn::AdamConfig ac;

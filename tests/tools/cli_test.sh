@@ -51,15 +51,18 @@ else
   echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
 fi
 # The network benchmark writes its documented fields.
-if "$hns" bench --nn small --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
-   has_fields "$tmp/nn.json" model threads params infer_agent_steps_per_s train_agent_steps_per_s \
-     infer_gflops train_gflops gemm_gflops; then
+if "$hns" bench --nn small --masks quadrant --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
+   has_fields "$tmp/nn.json" model threads params isa masks infer_agent_steps_per_s train_agent_steps_per_s \
+     infer_gflops train_gflops infer_useful_gflops train_useful_gflops gemm_gflops &&
+   grep -q '"masks": "quadrant"' "$tmp/nn.json" && grep -q "instruction set" "$tmp/log"; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
   echo "FAIL: bench --nn run"; cat "$tmp/log"
 fi
 expect_fail 2 "nn" bench --nn huge
+expect_fail 2 "masks" bench --nn small --masks empty
+expect_fail 2 "without --nn" bench --masks full
 # A profiled run writes a Chrome trace with one event per env, step and phase (5 phases).
 if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
    grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 50 ]; then
