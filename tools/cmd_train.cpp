@@ -162,7 +162,8 @@ int run_train(const TrainOptions& opt) {
   if (opt.envs) cfg.envs = *opt.envs;
   if (opt.seed) cfg.seed = parse_seed("--seed", *opt.seed);
   cfg.validate();
-  check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model",
+  check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model and " +
+                   std::to_string(cfg.grad_groups) + " gradient groups",
                cfg.estimated_bytes());
 
   if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);

@@ -34,6 +34,7 @@ void visit_fields(Config& c, F&& f) {
   f("epochs", c.epochs, true);
   f("minibatches", c.minibatches, true);
   f("bptt", c.bptt, true);
+  f("grad_groups", c.grad_groups, true);
   f("lr", c.lr, true);
   f("clip", c.clip, true);
   f("entropy_coef", c.entropy_coef, true);
@@ -286,12 +287,18 @@ size_t TrainConfig::estimated_bytes() const {
   // Per buffer row and entity (other agents, boxes, ramps, self) the buffers and activations of both
   // networks take about 0.7 KB (small) or 1.85 KB (paper), on a fixed 70 MB or 165 MB (code, networks,
   // optimiser, thread pools): measured resident memory of 8 and 32 quadrant envs.
+  // The fixed part held 16 gradient groups of 4 bytes per parameter then; the config's count replaces them.
   const bool paper = model == "paper";
   const size_t base = (paper ? 165u : 70u) << 20;
   const size_t per_entity_row = paper ? 1850 : 700;
   const size_t rows = size_t(rollout_steps()) * size_t(envs) * size_t(L.max_agents);
   const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + 1);
-  return base + bc.estimated_bytes() + rows * entities * per_entity_row;
+  nn::ParamLayout layout;
+  nn::EntityNet(nn::net_preset(model), nn::NetHead::kPolicy, layout, "policy");
+  nn::EntityNet(nn::net_preset(model), nn::NetHead::kValue, layout, "value");
+  const size_t group_bytes = layout.num_params() * sizeof(float);
+  return base - 16 * group_bytes + size_t(grad_groups) * group_bytes + bc.estimated_bytes() +
+         rows * entities * per_entity_row;
 }
 
 void TrainConfig::validate() const {
@@ -314,6 +321,7 @@ void TrainConfig::validate() const {
   check(threads >= 0 && threads <= 4096, "threads", threads, "must be in [0, 4096] (0 = all)");
   check(epochs >= 1 && epochs <= 100, "epochs", epochs, "must be in [1, 100]");
   check(bptt >= 1 && bptt <= 1000, "bptt", bptt, "must be in [1, 1000]");
+  check(grad_groups >= 1 && grad_groups <= 1024, "grad_groups", grad_groups, "must be in [1, 1024]");
   check(rollout_steps() % bptt == 0, "bptt", bptt,
         "must divide the rollout length (horizon x episodes_per_iteration)");
   // The rollout buffer holds every agent slot of every env for every step of an iteration (several KiB of

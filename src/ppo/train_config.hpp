@@ -33,6 +33,9 @@ struct TrainConfig {
   int epochs = 4;       // passes over the rollout buffer per iteration
   int minibatches = 4;  // minibatches per epoch (each a set of BPTT chunks)
   int bptt = 10;        // BPTT truncation: steps per chunk
+  // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
+  // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
+  int grad_groups = 8;
   double lr = 3e-4;     // Adam learning rate
   double clip = 0.2;    // PPO ratio clip ε
   double entropy_coef = 0.01;

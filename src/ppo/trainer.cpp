@@ -115,7 +115,9 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
 
   nn::NetConfig nc = nn::net_preset(cfg_.model);
   nc.obs = obs_shape(L);
-  net_ = std::make_unique<nn::ActorCritic>(nc);
+  nn::ParallelConfig par;
+  par.grad_groups = cfg_.grad_groups;
+  net_ = std::make_unique<nn::ActorCritic>(nc, par);
   net_->params().init(cfg_.seed);
   nn::AdamConfig ac;
   ac.lr = float(cfg_.lr);

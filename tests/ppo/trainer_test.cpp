@@ -70,6 +70,8 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("scene", "moon", "quadrant, full, empty, lockbox");
   rejects("model", "huge", "small, paper");
   rejects("bptt", "7", "must divide the rollout length");
+  rejects("grad_groups", "0", "grad_groups");
+  rejects("grad_groups", "2000", "must be in [1, 1024]");
   rejects("colour", "red", "unknown key 'colour'");
   rejects("envs", "65536", "agent-step rows in the rollout buffer");  // 80 steps x 65536 envs x 6 slots
 }
