@@ -82,6 +82,18 @@ ActorCritic::ThreadWork& ActorCritic::local_work(
   return *w;
 }
 
+void ActorCritic::pack_lstms(bool for_backward) const {
+  const EntityNet* nets[2] = {&policy_, &value_};
+  for (int i = 0; i < 2; ++i) {
+    const size_t n = nets[i]->lstm_packed_floats();
+    if (lstm_packed_buf_[i].size() != 2 * n) {
+      lstm_packed_buf_[i].resize(2 * n);
+      lstm_packed_[i] = {lstm_packed_buf_[i].data(), lstm_packed_buf_[i].data() + n};
+    }
+    nets[i]->pack_lstm(params_.values(), for_backward, lstm_packed_[i]);
+  }
+}
+
 void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, float* policy_state,
                       float* value_state, const float* uniforms, const ActOutputs& out) const {
   const int chunk = par_.infer_chunk_agents;
@@ -90,6 +102,7 @@ void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, 
   const int nh = heads_.num_heads();
   const int nl = heads_.num_logits();
   const float* p = params_.values();
+  pack_lstms(false);
   tbb::parallel_for(0, num_chunks, [&](int c) {
     ThreadWork& w = local_work(infer_work_, chunk, 1);
     const int first = c * chunk;
@@ -97,8 +110,8 @@ void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, 
     const ObsBatch sub = obs.rows_from(first, cfg_.obs);
     float* ps = policy_state + static_cast<ptrdiff_t>(first) * sw;
     float* vs = value_state + static_cast<ptrdiff_t>(first) * sw;
-    policy_.forward(p, norm, sub.policy_inputs(), n, 1, ps, ps, w.policy);
-    value_.forward(p, norm, sub.value_inputs(), n, 1, vs, vs, w.value);
+    policy_.forward(p, norm, sub.policy_inputs(), n, 1, ps, ps, w.policy, &lstm_packed_[0]);
+    value_.forward(p, norm, sub.value_inputs(), n, 1, vs, vs, w.value, &lstm_packed_[1]);
     const CMat logits = policy_.output(w.policy, n);
     heads_.sample(logits, uniforms + static_cast<ptrdiff_t>(first) * nh,
                   out.actions + static_cast<ptrdiff_t>(first) * nh,
@@ -125,6 +138,7 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
   while (group_grads_.size() < static_cast<size_t>(groups)) group_grads_.emplace_back(nfloats);
   chunk_stats_.assign(static_cast<size_t>(num_chunks) * nstats, 0.0);
   const float* p = params_.values();
+  pack_lstms(true);
 
   // Each group: its chunks in order, gradients summed into its own buffer.
   tbb::parallel_for(0, groups, [&](int g) {
@@ -144,16 +158,16 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
       policy_.forward(
           p, norm, pin, n, steps,
           policy_state0 == nullptr ? nullptr : policy_state0 + static_cast<ptrdiff_t>(first_seq) * sw,
-          nullptr, w.policy);
+          nullptr, w.policy, &lstm_packed_[0]);
       value_.forward(
           p, norm, vin, n, steps,
           value_state0 == nullptr ? nullptr : value_state0 + static_cast<ptrdiff_t>(first_seq) * sw, nullptr,
-          w.value);
+          w.value, &lstm_packed_[1]);
       const ChunkOutputs outs{first_row, rows, policy_.output(w.policy, rows), w.value.bufs().head};
       const ChunkGrads grads{Mat(w.d_logits.data(), rows, nl), w.d_value.data()};
       loss(outs, grads, std::span<double>(chunk_stats_.data() + static_cast<size_t>(c) * nstats, nstats));
-      policy_.backward(p, gg, pin, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy);
-      value_.backward(p, gg, vin, n, steps, CMat(w.d_value.data(), rows, 1), w.value);
+      policy_.backward(p, gg, pin, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
+      value_.backward(p, gg, vin, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
     }
   });
 

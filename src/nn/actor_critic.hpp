@@ -130,8 +130,15 @@ class ActorCritic {
   ParamStore params_;
   mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> infer_work_;
   mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> train_work_;
+  // Packs both LSTMs' recurrent kernels for the current params (the forward's only, or both).
+  void pack_lstms(bool for_backward) const;
+
   std::vector<FloatBuffer> group_grads_;  // [grad_groups][buffer_floats]
-  std::vector<double> chunk_stats_;       // [chunks, stats]
+  // The LSTMs' recurrent kernels packed once per act() or forward_backward() call (the params do not change
+  // during one), shared by every chunk: [policy, value], each two packed_floats() (W_h, W_h^T).
+  mutable FloatBuffer lstm_packed_buf_[2];
+  mutable Lstm::Packed lstm_packed_[2];
+  std::vector<double> chunk_stats_;  // [chunks, stats]
 };
 
 }  // namespace hns::nn

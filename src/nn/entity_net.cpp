@@ -168,7 +168,8 @@ void inject_nn_work(int rows) {
 }  // namespace
 
 void EntityNet::forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences,
-                        int steps, const float* state_in, float* state_out, Work& ws) const {
+                        int steps, const float* state_in, float* state_out, Work& ws,
+                        const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
   const int rows = sequences * steps;
@@ -234,13 +235,13 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
 
   // LSTM, layer norm, head.
   lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, in.reset, state_in, b.lstm,
-                state_out);
+                state_out, lstm_packed);
   out_norm_.forward(params, CMat(b.lstm.h, rows, cfg_.lstm), Mat(b.out_n, rows, cfg_.lstm), b.out_stats);
   head_.forward(params, CMat(b.out_n, rows, cfg_.lstm), Mat(b.head, rows, num_outputs()));
 }
 
 void EntityNet::backward(const float* params, float* grads, const NetInputs& in, int sequences, int steps,
-                         CMat d_output, Work& ws) const {
+                         CMat d_output, Work& ws, const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
   const int rows = sequences * steps;
@@ -254,7 +255,7 @@ void EntityNet::backward(const float* params, float* grads, const NetInputs& in,
   out_norm_.backward(params, grads, CMat(b.lstm.h, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
                      Mat(b.d_h, rows, u));
   lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, in.reset, b.lstm,
-                 CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h));
+                 CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h), lstm_packed);
   const Mat dz(b.d_dense_n, rows, h);
   dense_norm_.backward_fused(params, grads, CMat(b.dense_a, rows, h), b.dense_stats, Activation::kRelu, dz,
                              dz, nullptr);

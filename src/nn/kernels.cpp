@@ -1,6 +1,9 @@
 #include "nn/kernels.hpp"
 
+#include <algorithm>
+#include <cstring>
 #include <string>
+#include <type_traits>
 
 #include "nn/simd.hpp"
 
@@ -188,7 +191,110 @@ void lstm_cell_backward_impl(const float* gates, const float* c_prev, const floa
   });
 }
 
+// Packed layout of gemm_pack: full panels of kPanel columns, each [k_in, kPanel] contiguous, then the
+// n_out % kPanel remaining columns as one narrower panel [k_in, rest]. A register tile is kPanelRows rows x
+// one panel: 24 accumulators of AVX-512's 32 registers (12 of AVX2's 16); each loaded vector of b serves
+// kPanelRows fmas.
+constexpr int kPanelVecs = 4;
+constexpr int kPanel = kPanelVecs * simd::kWidth;
+constexpr int kPanelRows = simd::kWidth >= 16 ? 6 : 3;
+
+// kRows rows x kVecs vectors (lanes of F each) of y += x b, b read with row stride ldb.
+template <class F, int kRows, int kVecs>
+inline void gemm_tile(const float* x, ptrdiff_t ldx, const float* b, ptrdiff_t ldb, int k_in, float* y,
+                      ptrdiff_t ldy) {
+  constexpr int kLanes = std::is_same_v<F, float> ? 1 : simd::kWidth;
+  F acc[kRows][kVecs];
+  for (int m = 0; m < kRows; ++m)
+    for (int v = 0; v < kVecs; ++v) acc[m][v] = load<F>(y + m * ldy + v * kLanes);
+  for (int k = 0; k < k_in; ++k) {
+    F bk[kVecs];
+    for (int v = 0; v < kVecs; ++v) bk[v] = load<F>(b + k * ldb + v * kLanes);
+    for (int m = 0; m < kRows; ++m) {
+      const F xm(x[m * ldx + k]);
+      for (int v = 0; v < kVecs; ++v) acc[m][v] = simd::fma(xm, bk[v], acc[m][v]);
+    }
+  }
+  for (int m = 0; m < kRows; ++m)
+    for (int v = 0; v < kVecs; ++v) store(y + m * ldy + v * kLanes, acc[m][v]);
+}
+
+// kRows rows of the product across all columns: every full panel, then the narrow one by vectors and
+// single columns.
+template <bool kSimd, int kRows>
+void gemm_panel_rows(const float* x, ptrdiff_t ldx, const float* packed, int k_in, int n_out, float* y,
+                     ptrdiff_t ldy) {
+  const int full = n_out / kPanel * kPanel;
+  for (int n = 0; n < full; n += kPanel) {
+    const float* b = packed + static_cast<ptrdiff_t>(n) * k_in;
+    if constexpr (kSimd) {
+      gemm_tile<Batch, kRows, kPanelVecs>(x, ldx, b, kPanel, k_in, y + n, ldy);
+    } else {
+      for (int c = 0; c < kPanel; ++c)
+        gemm_tile<float, kRows, 1>(x, ldx, b + c, kPanel, k_in, y + n + c, ldy);
+    }
+  }
+  const int rest = n_out - full;
+  const float* b = packed + static_cast<ptrdiff_t>(full) * k_in;
+  int c = 0;
+  if constexpr (kSimd) {
+    for (; c + simd::kWidth <= rest; c += simd::kWidth)
+      gemm_tile<Batch, kRows, 1>(x, ldx, b + c, rest, k_in, y + full + c, ldy);
+  }
+  for (; c < rest; ++c) gemm_tile<float, kRows, 1>(x, ldx, b + c, rest, k_in, y + full + c, ldy);
+}
+
+// The last rows % kPanelRows rows in one pass (not one pass per row).
+template <bool kSimd, int kRows = kPanelRows - 1>
+void gemm_tail_rows(int rows, const float* x, ptrdiff_t ldx, const float* packed, int k_in, int n_out,
+                    float* y, ptrdiff_t ldy) {
+  if constexpr (kRows > 0) {
+    if (rows == kRows) return gemm_panel_rows<kSimd, kRows>(x, ldx, packed, k_in, n_out, y, ldy);
+    gemm_tail_rows<kSimd, kRows - 1>(rows, x, ldx, packed, k_in, n_out, y, ldy);
+  }
+}
+
+template <bool kSimd>
+void gemm_acc_packed_impl(const float* x, ptrdiff_t ldx, const float* packed, int rows, int k_in, int n_out,
+                          float* y, ptrdiff_t ldy) {
+  int m = 0;
+  for (; m + kPanelRows <= rows; m += kPanelRows)
+    gemm_panel_rows<kSimd, kPanelRows>(x + m * ldx, ldx, packed, k_in, n_out, y + m * ldy, ldy);
+  gemm_tail_rows<kSimd>(rows - m, x + m * ldx, ldx, packed, k_in, n_out, y + m * ldy, ldy);
+}
+
 }  // namespace
+
+size_t gemm_packed_floats(int k_in, int n_out) {
+  return static_cast<size_t>(k_in) * n_out;
+}
+
+void gemm_pack(const float* w, ptrdiff_t ldw, int k_in, int n_out, bool transpose, float* packed) {
+  const int full = n_out / kPanel * kPanel;
+  for (int n0 = 0; n0 < n_out; n0 += kPanel) {
+    const int width = n0 < full ? kPanel : n_out - full;
+    float* panel = packed + static_cast<ptrdiff_t>(n0) * k_in;
+    if (transpose) {
+      // b[k, n0 + n] = w[n0 + n, k]: blocks of 16 k so that the panel's lines stay in cache.
+      for (int k0 = 0; k0 < k_in; k0 += 16)
+        for (int n = 0; n < width; ++n)
+          for (int k = k0; k < std::min(k_in, k0 + 16); ++k)
+            panel[static_cast<ptrdiff_t>(k) * width + n] = w[(n0 + n) * ldw + k];
+    } else {
+      for (int k = 0; k < k_in; ++k)
+        std::memcpy(panel + static_cast<ptrdiff_t>(k) * width, w + k * ldw + n0, sizeof(float) * width);
+    }
+  }
+}
+
+void gemm_acc_packed(const float* x, ptrdiff_t ldx, const float* packed, int rows, int k_in, int n_out,
+                     float* y, ptrdiff_t ldy) {
+  gemm_acc_packed_impl<true>(x, ldx, packed, rows, k_in, n_out, y, ldy);
+}
+void gemm_acc_packed_scalar(const float* x, ptrdiff_t ldx, const float* packed, int rows, int k_in, int n_out,
+                            float* y, ptrdiff_t ldy) {
+  gemm_acc_packed_impl<false>(x, ldx, packed, rows, k_in, n_out, y, ldy);
+}
 
 int simd_width() {
   return simd::kWidth;

@@ -3,6 +3,7 @@
 // (n features, contiguous) or on rows x n, never allocate, and accept any n >= 0 (vector loop + scalar tail).
 #pragma once
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 
@@ -79,6 +80,21 @@ void lstm_cell_backward(const float* gates, const float* c_prev, const float* ta
                         const float* dc, int u, float* dg, float* dc_prev);
 void lstm_cell_backward_scalar(const float* gates, const float* c_prev, const float* tanh_c, const float* dh,
                                const float* dc, int u, float* dg, float* dc_prev);
+
+// Products of few rows against a weight matrix used many times (the LSTM's recurrent step: one row per
+// sequence, every step against the same W_h), where a packing GEMM would copy the weights on every call.
+// The weights are packed once into column panels (gemm_pack, gemm_packed_floats of them), then
+//   y[m, n] += sum_k x[m, k] b[k, n]   for m < rows, n < n_out, k < k_in
+// streams them once per few rows. Row strides ldx, ldy in floats. Each y[m, n] is one fma chain over k in
+// order, starting from its old value: the vector and scalar paths give the same bits, and a row's result
+// does not depend on how many rows there are.
+// b [k_in, n_out] is w (row-major, row stride ldw) or, with transpose, w^T for w [n_out, k_in].
+size_t gemm_packed_floats(int k_in, int n_out);
+void gemm_pack(const float* w, ptrdiff_t ldw, int k_in, int n_out, bool transpose, float* packed);
+void gemm_acc_packed(const float* x, ptrdiff_t ldx, const float* packed, int rows, int k_in, int n_out,
+                     float* y, ptrdiff_t ldy);
+void gemm_acc_packed_scalar(const float* x, ptrdiff_t ldx, const float* packed, int rows, int k_in, int n_out,
+                            float* y, ptrdiff_t ldy);
 
 }  // namespace kernels
 }  // namespace hns::nn

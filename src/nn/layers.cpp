@@ -496,6 +496,8 @@ void Lstm::Buffers::bind(Arena& arena) {
   c_prev = arena.take(rows * units);
   h_prev = arena.take(rows * units);
   d_gates = arena.take(rows * 4 * units);
+  packed.w_h = arena.take(kernels::gemm_packed_floats(units, 4 * units));
+  packed.w_h_t = arena.take(kernels::gemm_packed_floats(4 * units, units));
   dh = arena.take(static_cast<size_t>(sequences) * units);
   dc = arena.take(static_cast<size_t>(sequences) * units);
 }
@@ -506,14 +508,23 @@ Lstm::Lstm(ParamLayout& layout, const std::string& name, int in, int units) : in
   b_ = layout.add_vector(name + "/b", 4 * units, Init::kZeros);
 }
 
+void Lstm::pack(const float* params, bool for_backward, Packed& out) const {
+  const int u = units_, g4 = 4 * units_;
+  const float* w_h = params + w_ + static_cast<size_t>(in_) * g4;
+  kernels::gemm_pack(w_h, g4, u, g4, false, out.w_h);
+  if (for_backward) kernels::gemm_pack(w_h, g4, g4, u, true, out.w_h_t);
+}
+
 void Lstm::forward(const float* params, CMat x, int sequences, int steps, const float* reset,
-                   const float* state_in, Buffers& bufs, float* state_out) const {
+                   const float* state_in, Buffers& bufs, float* state_out, const Packed* packed) const {
   const int u = units_;
   const int g4 = 4 * u;
   const int rows = sequences * steps;
   assert(x.rows == rows && x.cols == in_ && sequences <= bufs.sequences && steps == bufs.steps);
   const ConstWeights w_x(params + w_, in_, g4);
-  const ConstWeights w_h(params + w_ + static_cast<size_t>(in_) * g4, u, g4);
+  const float* w_h_packed = packed != nullptr ? packed->w_h : bufs.packed.w_h;
+  if (packed == nullptr)
+    kernels::gemm_pack(params + w_ + static_cast<size_t>(in_) * g4, g4, u, g4, false, bufs.packed.w_h);
   // Input contributions of every step at once.
   Mat gates(bufs.gates, rows, g4);
   gates.map().noalias() = x.map() * w_x;
@@ -536,8 +547,9 @@ void Lstm::forward(const float* params, CMat x, int sequences, int steps, const 
       }
     }
     // Recurrent contribution for step t (rows t, t + steps, ...), then the cell nonlinearities.
-    Mat gates_t = gates.every(t, steps, sequences);
-    gates_t.map().noalias() += CMat(bufs.h_prev, rows, u).every(t, steps, sequences).map() * w_h;
+    kernels::gemm_acc_packed(bufs.h_prev + static_cast<ptrdiff_t>(t) * u, static_cast<ptrdiff_t>(steps) * u,
+                             w_h_packed, sequences, u, g4, bufs.gates + static_cast<ptrdiff_t>(t) * g4,
+                             static_cast<ptrdiff_t>(steps) * g4);
     for (int b = 0; b < sequences; ++b) {
       const ptrdiff_t row = b * steps + t;
       float* g = bufs.gates + row * g4;
@@ -555,12 +567,14 @@ void Lstm::forward(const float* params, CMat x, int sequences, int steps, const 
 }
 
 void Lstm::backward(const float* params, float* grads, CMat x, int sequences, int steps, const float* reset,
-                    Buffers& bufs, CMat dh, Mat dx) const {
+                    Buffers& bufs, CMat dh, Mat dx, const Packed* packed) const {
   const int u = units_;
   const int g4 = 4 * u;
   const int rows = sequences * steps;
   const ConstWeights w_x(params + w_, in_, g4);
-  const ConstWeights w_h(params + w_ + static_cast<size_t>(in_) * g4, u, g4);
+  const float* w_h_t_packed = packed != nullptr ? packed->w_h_t : bufs.packed.w_h_t;
+  if (packed == nullptr && steps > 1)
+    kernels::gemm_pack(params + w_ + static_cast<size_t>(in_) * g4, g4, g4, u, true, bufs.packed.w_h_t);
   Mat dh_carry(bufs.dh, sequences, u);
   Mat dc_carry(bufs.dc, sequences, u);
   zero_mat(dh_carry);
@@ -577,7 +591,9 @@ void Lstm::backward(const float* params, float* grads, CMat x, int sequences, in
     }
     // Gradient w.r.t. the state entering step t; nothing flows past a reset (or out of the chunk).
     if (t == 0) break;
-    dh_carry.map().noalias() = d_gates.every(t, steps, sequences).map() * w_h.transpose();
+    zero_mat(dh_carry);
+    kernels::gemm_acc_packed(d_gates.row(t), static_cast<ptrdiff_t>(steps) * g4, w_h_t_packed, sequences, g4,
+                             u, dh_carry.row(0), u);
     for (int b = 0; b < sequences; ++b) {
       if (reset != nullptr && reset[b * steps + t] != 0.0f) {
         std::memset(dh_carry.row(b), 0, sizeof(float) * u);

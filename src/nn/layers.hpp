@@ -248,6 +248,11 @@ void masked_mean_pool_backward(CMat dout, const float* mask, int entities, Mat d
 // tensors are [sequences, 2 * units]: c in [0, units), h in [units, 2 units).
 class Lstm {
  public:
+  // W_h packed for the forward's recurrent product (w_h) and W_h^T for the backward's (w_h_t).
+  struct Packed {
+    float* w_h = nullptr;
+    float* w_h_t = nullptr;
+  };
   struct Buffers {
     int sequences = 0, steps = 0, in = 0, units = 0;
     float* gates = nullptr;    // [rows, 4 units]: x W_x + b, then + h W_h, then activated in place
@@ -257,6 +262,7 @@ class Lstm {
     float* c_prev = nullptr;   // [rows, units] state entering each step (after reset)
     float* h_prev = nullptr;   // [rows, units]
     float* d_gates = nullptr;  // [rows, 4 units]
+    Packed packed;             // [4 units * units] each: W_h (and W_h^T) packed by this call, if not given
     float* dh = nullptr;       // [sequences, units] carried gradient
     float* dc = nullptr;       // [sequences, units]
     Buffers() = default;
@@ -276,11 +282,17 @@ class Lstm {
   // x [sequences * steps, in]; reset [rows] (null: never); state_in [sequences, 2 units] (null: zeros);
   // state_out [sequences, 2 units] (null: not written). `sequences` may be below bufs.sequences. Output:
   // bufs.h.
+  // The recurrent products (a few rows per step) read W_h packed by pack(); `packed` is that of the
+  // current params (shared by many calls: the weights do not change within a minibatch), or null to pack
+  // into bufs on this call.
   void forward(const float* params, CMat x, int sequences, int steps, const float* reset,
-               const float* state_in, Buffers& bufs, float* state_out) const;
+               const float* state_in, Buffers& bufs, float* state_out, const Packed* packed = nullptr) const;
   // dh [rows, units] gradient w.r.t. the outputs; dx [rows, in] written. The initial state gets no gradient.
   void backward(const float* params, float* grads, CMat x, int sequences, int steps, const float* reset,
-                Buffers& bufs, CMat dh, Mat dx) const;
+                Buffers& bufs, CMat dh, Mat dx, const Packed* packed = nullptr) const;
+  // W_h (and, for backward, W_h^T) packed for kernels::gemm_acc_packed, packed_floats() each.
+  size_t packed_floats() const { return kernels::gemm_packed_floats(units_, 4 * units_); }
+  void pack(const float* params, bool for_backward, Packed& out) const;
 
  private:
   int in_ = 0;

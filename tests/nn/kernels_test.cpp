@@ -215,6 +215,40 @@ TEST(NnKernels, ActLayerNormMatchesScalarAndFormula) {
   }
 }
 
+// The packed small-row product: every row count around the register tile, column counts around the panel
+// width (full panels, vectors and single columns of the narrow one), both packings; vector and scalar paths
+// equal bit for bit, both equal the plain fma chain over k, and a row's result does not depend on the rows
+// beside it.
+TEST(NnKernels, PackedGemmMatchesScalarAndFmaChain) {
+  const int w = kernels::simd_width();
+  for (const int n_out : {1, w - 1, w, 4 * w, 4 * w + w + 3, 9 * w + 1})
+    for (const int k_in : {1, 7, 33})
+      for (const bool transpose : {false, true}) {
+        const int rows = 13;  // > 2 tiles of 6 (AVX-512) or 3 (AVX2) rows, and a tail
+        const auto x = random_vector(size_t(rows) * k_in, 31);
+        // w: [k_in, n_out], or [n_out, k_in] when packed transposed.
+        const auto wv = random_vector(size_t(k_in) * n_out, 32);
+        auto b = [&](int k, int n) {
+          return transpose ? wv[size_t(n) * k_in + k] : wv[size_t(k) * n_out + n];
+        };
+        std::vector<float> packed(kernels::gemm_packed_floats(k_in, n_out));
+        kernels::gemm_pack(wv.data(), transpose ? k_in : n_out, k_in, n_out, transpose, packed.data());
+        const auto y0 = random_vector(size_t(rows) * n_out, 33);
+        for (int m = 1; m <= rows; ++m) {
+          std::vector<float> yv(y0.begin(), y0.begin() + size_t(m) * n_out), ys = yv;
+          kernels::gemm_acc_packed(x.data(), k_in, packed.data(), m, k_in, n_out, yv.data(), n_out);
+          kernels::gemm_acc_packed_scalar(x.data(), k_in, packed.data(), m, k_in, n_out, ys.data(), n_out);
+          ASSERT_TRUE(same_bits(yv, ys)) << "rows " << m << ", n " << n_out << ", k " << k_in;
+          for (int r = 0; r < m; ++r)
+            for (int n = 0; n < n_out; ++n) {
+              float acc = y0[size_t(r) * n_out + n];
+              for (int k = 0; k < k_in; ++k) acc = std::fma(x[size_t(r) * k_in + k], b(k, n), acc);
+              ASSERT_EQ(acc, yv[size_t(r) * n_out + n]) << "row " << r << " of " << m << ", column " << n;
+            }
+        }
+      }
+}
+
 TEST(NnKernels, LstmCellMatchesScalarAndFormula) {
   for (int u = 0; u <= max_n(); ++u) {
     const auto g = random_vector(4 * u, 150 + u, -3.0f, 3.0f);
