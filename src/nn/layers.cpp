@@ -31,14 +31,6 @@ void copy_mat(CMat src, Mat dst) {
   for (int r = 0; r < src.rows; ++r) std::memcpy(dst.row(r), src.row(r), sizeof(float) * src.cols);
 }
 
-// Dot product in the vector lanes' order (nn/simd.hpp).
-float dot(const float* a, const float* b, int n) {
-  return simd::sum<true>(n, [&](auto tag, int i) {
-    using F = decltype(tag);
-    return simd::load<F>(a + i) * simd::load<F>(b + i);
-  });
-}
-
 // y[0, n) += a * x[0, n).
 void axpy(float a, const float* x, float* y, int n) {
   for (int i = 0; i < n; ++i) y[i] += a * x[i];
@@ -275,6 +267,9 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   d_qh = arena.take(entities * dh);
   d_kh = arena.take(entities * dh);
   d_p = arena.take(static_cast<size_t>(entities) * entities);
+  const size_t ld = attention_key_stride(entities);
+  kt = arena.take(dh * ld);
+  scores = arena.take(ld);
 }
 
 SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int width, int heads, bool pre_ln,
@@ -295,6 +290,39 @@ double SelfAttention::flops(double entity_rows, double pairs) const {
 }
 
 namespace {
+
+// out[j] = sum_c a[c] * bt[c * ld + j] for j < ld (a whole number of vectors; bt's columns past the keys
+// are 0): one query against every key of a head at once, the keys transposed to [dh, ld].
+void query_times_keys(const float* a, int len, const float* bt, int ld, float* out) {
+  using simd::Batch;
+  for (int j = 0; j < ld; j += simd::kWidth) {
+    Batch acc(0.0f);
+    for (int c = 0; c < len; ++c) acc = simd::fma(Batch(a[c]), simd::load<Batch>(bt + c * ld + j), acc);
+    simd::store(out + j, acc);
+  }
+}
+
+// bt[c * ld + j] = rows[j * row_stride + c] for j < m, c < len, and 0 for m <= j < ld.
+void transpose_keys(const float* rows, ptrdiff_t row_stride, int m, int len, int ld, float* bt) {
+  for (int c = 0; c < len; ++c) {
+    float* dst = bt + static_cast<ptrdiff_t>(c) * ld;
+    for (int j = 0; j < m; ++j) dst[j] = rows[j * row_stride + c];
+    for (int j = m; j < ld; ++j) dst[j] = 0.0f;
+  }
+}
+
+// out[0, len) = init + sum_j w[j * w_stride] * rows[j * row_stride + (0, len)] over j < m (init: out's old
+// value when accumulate, else 0), summed in j order in registers.
+void weighted_rows(const float* w, ptrdiff_t w_stride, const float* rows, ptrdiff_t row_stride, int m,
+                   int len, bool accumulate, float* out) {
+  simd::for_each<true>(len, [&](auto tag, int c) {
+    using F = decltype(tag);
+    F acc = accumulate ? simd::load<F>(out + c) : F(0.0f);
+    for (int j = 0; j < m; ++j)
+      acc = simd::fma(F(w[j * w_stride]), simd::load<F>(rows + j * row_stride + c), acc);
+    simd::store(out + c, acc);
+  });
+}
 
 // Compact row i of src to row live[i] of dst, zeros to the rows of masked entities.
 void scatter_compact(CMat src, const int32_t* live, int n, const float* mask, Mat dst) {
@@ -360,17 +388,19 @@ void SelfAttention::forward(const float* params, CMat x, const float* mask, int 
         }
       }
     }
+    // Per head: each query against all keys at once (keys transposed), softmax, p·V in registers.
+    const int ld = attention_key_stride(m);
     for (int h = 0; h < heads_; ++h) {
       const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
+      transpose_keys(kh, dh, m, static_cast<int>(dh), ld, bufs.kt);
       for (int i = 0; i < m; ++i) {
         float* pi = p + i * e_count;
-        for (int j = 0; j < m; ++j) pi[j] = dot(qh + i * dh, kh + j * dh, dh);
-        kernels::masked_softmax(pi, bufs.ones, scale, m, pi);
-        float* o = bufs.att + (c0 + i) * d + h * dh;
-        std::memset(o, 0, sizeof(float) * dh);
-        for (int j = 0; j < m; ++j) axpy(pi[j], bufs.v + (c0 + j) * d + h * dh, o, dh);
+        query_times_keys(qh + i * dh, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+        kernels::masked_softmax(bufs.scores, bufs.ones, scale, m, pi);
+        weighted_rows(pi, 1, bufs.v + c0 * d + h * dh, d, m, static_cast<int>(dh), false,
+                      bufs.att + (c0 + i) * d + h * dh);
       }
     }
   }
@@ -411,26 +441,24 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
       const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
       const float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
-      std::memset(bufs.d_qh, 0, sizeof(float) * m * dh);
-      std::memset(bufs.d_kh, 0, sizeof(float) * m * dh);
+      // dp[i, j] = da_i · v_j (values transposed: each da_i against every value at once).
+      const int ld = attention_key_stride(m);
+      const float* vh = bufs.v + c0 * d + h * dh;
+      const float* da = bufs.d_att + c0 * d + h * dh;
+      transpose_keys(vh, d, m, static_cast<int>(dh), ld, bufs.kt);
       for (int i = 0; i < m; ++i) {
-        const float* pi = p + i * e_count;
-        const float* da = bufs.d_att + (c0 + i) * d + h * dh;
         float* dpi = bufs.d_p + i * e_count;
-        // dp[i, j] = da_i . v_j and dv_j += p[i, j] da_i.
-        for (int j = 0; j < m; ++j) {
-          const ptrdiff_t vrow = (c0 + j) * d + h * dh;
-          dpi[j] = dot(da, bufs.v + vrow, dh);
-          axpy(pi[j], da, bufs.d_v + vrow, dh);
-        }
-        kernels::masked_softmax_backward(pi, dpi, scale, m, dpi);
-        // dq_i = sum_j dl[i, j] k_j; dk_j += dl[i, j] q_i.
-        for (int j = 0; j < m; ++j) {
-          if (dpi[j] == 0.0f) continue;
-          axpy(dpi[j], kh + j * dh, bufs.d_qh + i * dh, dh);
-          axpy(dpi[j], qh + i * dh, bufs.d_kh + j * dh, dh);
-        }
+        query_times_keys(da + i * d, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+        kernels::masked_softmax_backward(p + i * e_count, bufs.scores, scale, m, dpi);
       }
+      // dv_j += sum_i p[i, j] da_i; with dl = d_p (the softmax's input gradient): dq_i = sum_j dl[i, j] k_j,
+      // dk_j = sum_i dl[i, j] q_i.
+      for (int j = 0; j < m; ++j) {
+        weighted_rows(p + j, e_count, da, d, m, static_cast<int>(dh), true, bufs.d_v + (c0 + j) * d + h * dh);
+        weighted_rows(bufs.d_p + j, e_count, qh, dh, m, static_cast<int>(dh), false, bufs.d_kh + j * dh);
+      }
+      for (int i = 0; i < m; ++i)
+        weighted_rows(bufs.d_p + i * e_count, 1, kh, dh, m, static_cast<int>(dh), false, bufs.d_qh + i * dh);
       // Re-interleave into d_qk.
       for (int e = 0; e < m; ++e) {
         float* dst = bufs.d_qk + (c0 + e) * 2 * d;

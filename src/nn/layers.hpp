@@ -165,6 +165,12 @@ class EntityEmbedding {
 // query's output is never used. Its work is skipped entirely: the unmasked entities of all rows are
 // gathered into compact rows first (every product and norm runs on those), a masked entity's output is 0
 // and it gets no gradient.
+// Keys of one row padded to a whole number of vectors (the attention computes a query's scores against all
+// keys at once).
+inline int attention_key_stride(int entities) {
+  return (entities + kernels::simd_width() - 1) / kernels::simd_width() * kernels::simd_width();
+}
+
 class SelfAttention {
  public:
   // The compact row count is padded to a multiple of this with zero rows: Eigen's GEMM runs a row count
@@ -200,6 +206,8 @@ class SelfAttention {
     float* d_qh = nullptr;      // [E, dh] one head's query gradient
     float* d_kh = nullptr;      // [E, dh]
     float* d_p = nullptr;       // [E, E]
+    float* kt = nullptr;        // [dh, attention_key_stride(E)] one head's keys (or values) transposed
+    float* scores = nullptr;    // [attention_key_stride(E)] one query's scores
     Buffers() = default;
     Buffers(int rows, int entities, int width, int heads)
         : rows(rows), entities(entities), width(width), heads(heads) {}
