@@ -31,12 +31,15 @@ struct SyntheticObs {
       v.resize(n);
       for (auto& x : v) x = rng.uniform() < p ? 1.0f : 0.0f;
     };
-    // present ~ p_present; seen ~ p_seen among the present.
-    auto masks = [&](std::vector<float>& present, std::vector<float>& seen, size_t n, double p_present,
-                     double p_seen) {
-      mask(present, n, p_present);
-      mask(seen, n, p_seen);
-      for (size_t i = 0; i < n; ++i) seen[i] *= present[i];
+    // present ~ p_present (no draws when 1: the default inputs are those of earlier versions); seen ~ p_seen
+    // among the present.
+    auto present_mask = [&](std::vector<float>& present, std::vector<float>& seen, double p_present) {
+      if (p_present >= 1.0) {
+        present.assign(seen.size(), 1.0f);
+      } else {
+        mask(present, seen.size(), p_present);
+      }
+      for (size_t i = 0; i < seen.size(); ++i) seen[i] *= present[i];
     };
     const size_t r = rows;
     fill(self, r * s.self_features, -3.0, 3.0);
@@ -44,9 +47,12 @@ struct SyntheticObs {
     fill(agents, r * s.num_other_agents() * s.agent_features, -3.0, 3.0);
     fill(boxes, r * s.max_boxes * s.box_features, -3.0, 3.0);
     fill(ramps, r * s.max_ramps * s.ramp_features, -3.0, 3.0);
-    masks(agents_present, agents_seen, r * s.num_other_agents(), d.agents_present, d.agents_seen);
-    masks(boxes_present, boxes_seen, r * s.max_boxes, d.boxes_present, d.boxes_seen);
-    masks(ramps_present, ramps_seen, r * s.max_ramps, d.ramps_present, d.ramps_seen);
+    mask(agents_seen, r * s.num_other_agents(), d.agents_seen);
+    mask(boxes_seen, r * s.max_boxes, d.boxes_seen);
+    mask(ramps_seen, r * s.max_ramps, d.ramps_seen);
+    present_mask(agents_present, agents_seen, d.agents_present);
+    present_mask(boxes_present, boxes_seen, d.boxes_present);
+    present_mask(ramps_present, ramps_seen, d.ramps_present);
     if (d.alternate_last_box && s.max_boxes > 0)
       for (size_t i = 0; i < r; i += 2)
         boxes_present[i * s.max_boxes + s.max_boxes - 1] = boxes_seen[i * s.max_boxes + s.max_boxes - 1] =
