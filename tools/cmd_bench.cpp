@@ -275,9 +275,9 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
          "random-action episodes of this scene")
       ->check(CLI::IsMember({"synthetic", "quadrant", "full"}))
       ->capture_default_str();
-  commands.push_back({cmd, [opt] {
+  commands.push_back({cmd, [opt, cmd] {
                         opt->seed = parse_seed("--seed", opt->seed_text);
-                        if (opt->nn.empty() && opt->masks != "synthetic")
+                        if (opt->nn.empty() && cmd->count("--masks") > 0)
                           throw phys::ConfigError(
                               "--masks " + opt->masks +
                               " is invalid without --nn (it chooses the network's inputs)");

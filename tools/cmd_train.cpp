@@ -145,7 +145,7 @@ int run_train(const TrainOptions& opt) {
       throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
     }
     const std::string path = (fs::path(dir) / "config.json").string();
-    cfg.merge_json(read_text(path, "--resume: run config"), path);
+    cfg.merge_run_json(read_text(path, "--resume: run config"), path);
   } else if (!opt.config_file.empty()) {
     cfg.merge_json(read_text(opt.config_file, "--config"), opt.config_file);
   }

@@ -105,7 +105,8 @@ class ActorCritic {
   };
   // One environment step for `agents` agents (steps = 1). policy_state, value_state [agents, state_width()]
   // are read and replaced by the new states (obs.reset zeroes them first). uniforms [agents, num_heads] in
-  // [0, 1).
+  // [0, 1). Parallel inside; one call at a time per ActorCritic (act and forward_backward share its packed
+  // LSTM weights), like forward_backward.
   void act(const ObsNormView& norm, const ObsBatch& obs, int agents, float* policy_state, float* value_state,
            const float* uniforms, const ActOutputs& out) const;
 

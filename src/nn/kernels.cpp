@@ -5,6 +5,7 @@
 #include <string>
 #include <type_traits>
 
+#include "nn/isa_features.hpp"
 #include "nn/simd.hpp"
 
 namespace hns::nn::kernels {
@@ -321,39 +322,78 @@ std::string isa_description() {
          " floats per vector" + fma + ")";
 }
 
-std::string isa_unsupported() {
-  struct Feature {
-    bool compiled;
-    int present;
-    const char* name;
-  };
-  __builtin_cpu_init();
-  const Feature features[] = {
+// The build's extensions, from the compiler's feature macros (isa_features.hpp).
+extern const unsigned kIsaCompiled = 0u
 #if defined(__AVX2__)
-    {true, __builtin_cpu_supports("avx2"), "avx2"},
+                                     | kIsaAvx2
 #endif
 #if defined(__FMA__)
-    {true, __builtin_cpu_supports("fma"), "fma"},
+                                     | kIsaFma
+#endif
+#if defined(__BMI__)
+                                     | kIsaBmi
+#endif
+#if defined(__BMI2__)
+                                     | kIsaBmi2
+#endif
+#if defined(__F16C__)
+                                     | kIsaF16c
 #endif
 #if defined(__AVX512F__)
-    {true, __builtin_cpu_supports("avx512f"), "avx512f"},
+                                     | kIsaAvx512f
 #endif
 #if defined(__AVX512BW__)
-    {true, __builtin_cpu_supports("avx512bw"), "avx512bw"},
+                                     | kIsaAvx512bw
+#endif
+#if defined(__AVX512CD__)
+                                     | kIsaAvx512cd
 #endif
 #if defined(__AVX512DQ__)
-    {true, __builtin_cpu_supports("avx512dq"), "avx512dq"},
+                                     | kIsaAvx512dq
 #endif
 #if defined(__AVX512VL__)
-    {true, __builtin_cpu_supports("avx512vl"), "avx512vl"},
+                                     | kIsaAvx512vl
 #endif
-    {false, 1, ""}
-  };
-  for (const Feature& f : features)
-    if (f.compiled && f.present == 0)
-      return std::string("this build of hns uses ") + f.name + " (HNS_ISA=" + HNS_ISA_SETTING +
-             "), which this CPU does not have: rebuild with cmake -DHNS_ISA=avx2 (or HNS_ISA=avx2 tools/run)";
-  return {};
+#if defined(__AVX512VNNI__)
+                                     | kIsaAvx512vnni
+#endif
+#if defined(__AVX512BF16__)
+                                     | kIsaAvx512bf16
+#endif
+#if defined(__AVX512IFMA__)
+                                     | kIsaAvx512ifma
+#endif
+#if defined(__AVX512VBMI__)
+                                     | kIsaAvx512vbmi
+#endif
+#if defined(__AVX512VBMI2__)
+                                     | kIsaAvx512vbmi2
+#endif
+#if defined(__AVX512BITALG__)
+                                     | kIsaAvx512bitalg
+#endif
+#if defined(__AVX512VPOPCNTDQ__)
+                                     | kIsaAvx512vpopcntdq
+#endif
+#if defined(__GFNI__)
+                                     | kIsaGfni
+#endif
+#if defined(__VAES__)
+                                     | kIsaVaes
+#endif
+#if defined(__VPCLMULQDQ__)
+                                     | kIsaVpclmulqdq
+#endif
+#if defined(__AVX512VP2INTERSECT__)
+                                     | kIsaAvx512vp2intersect
+#endif
+    ;
+
+std::string isa_unsupported() {
+  const char* missing = isa_first_missing();
+  if (missing == nullptr) return {};
+  return std::string("this build uses ") + missing + " (HNS_ISA=" + HNS_ISA_SETTING +
+         "), which this CPU does not have: rebuild with HNS_ISA=avx2 tools/run (or cmake -DHNS_ISA=avx2)";
 }
 
 void normalize_obs(const float* x, const float* mean, const float* inv_std, const float* row_mask, int rows,

@@ -30,7 +30,8 @@ int simd_width();
 // "avx512 (AVX-512, 16 floats per vector, FMA)".
 std::string isa_description();
 // Empty when this CPU has every instruction set extension the build was compiled for; otherwise a sentence
-// naming the first one it lacks (running on would end in an illegal-instruction signal).
+// naming the first one it lacks. (A program linking this library never gets that far on such a CPU: a
+// start-up check, compiled for baseline x86-64, prints the same and exits with status 2 before main.)
 std::string isa_unsupported();
 
 // Observation normalisation fused with masking, over rows x n (contiguous):

@@ -169,7 +169,7 @@ TrainConfig Trainer::checkpoint_config(const std::string& path) {
   const std::string payload = read_payload(path);
   Reader r(payload.data(), payload.size(), path);
   TrainConfig c;
-  c.merge_json(r.get_string(), path + " (config)");
+  c.merge_run_json(r.get_string(), path + " (config)");
   return c;
 }
 
@@ -179,7 +179,7 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   const size_t length = file.size();
   Reader r(payload, length, path);
   TrainConfig saved = cfg_;
-  saved.merge_json(r.get_string(), path + " (config)");
+  saved.merge_run_json(r.get_string(), path + " (config)");
   std::string mismatch = saved.identity_mismatch(cfg_);
   if (mode == LoadMode::kPolicy) {
     // Only what shapes the networks must match.

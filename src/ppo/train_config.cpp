@@ -253,6 +253,11 @@ void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
   }
 }
 
+void TrainConfig::merge_run_json(std::string_view text, const std::string& origin) {
+  grad_groups = 16;  // before the key existed the update always used 16 gradient groups
+  merge_json(text, origin);
+}
+
 std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
   std::vector<std::string> mine, theirs;
   visit_fields(*this, [&](const char*, const auto& field, bool identity) {

@@ -36,8 +36,8 @@ struct TrainConfig {
   // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
   // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
   int grad_groups = 8;
-  double lr = 3e-4;     // Adam learning rate
-  double clip = 0.2;    // PPO ratio clip ε
+  double lr = 3e-4;   // Adam learning rate
+  double clip = 0.2;  // PPO ratio clip ε
   double entropy_coef = 0.01;
   double value_coef = 1.0;  // weight of 0.5·mean(((V - G)/std)²)
   double grad_clip = 5.0;   // global gradient-norm clip (0 = off)
@@ -64,6 +64,9 @@ struct TrainConfig {
   // Reads a flat JSON object (string, number and boolean values); keys not given keep their current values.
   // `origin` names the source in error messages.
   void merge_json(std::string_view text, const std::string& origin);
+  // The same for the config a run was made with (its config.json, a checkpoint's): a key that version did not
+  // have yet takes the value that version used (grad_groups: 16), not today's default.
+  void merge_run_json(std::string_view text, const std::string& origin);
   // Fields that change results when they differ between a checkpoint and the run resuming it.
   // Returns "" when equal, else "FIELD: checkpoint has A, this run has B".
   std::string identity_mismatch(const TrainConfig& other) const;

@@ -279,31 +279,39 @@ std::vector<double> ref_attention(const double* x, const double* p, const ParamS
   return out;
 }
 
+// Small, and with more entities than two vectors of keys and a head wider than a vector (the vector paths of
+// the score and p·V loops).
 TEST(NnLayers, SelfAttentionBackwardMatchesFiniteDifferences) {
-  const int rows = 3, e_count = 5, d = 8, heads = 2;
-  ParamLayout layout;
-  SelfAttention sa(layout, "a", d, heads, true, true);
-  ParamStore store(layout);
-  randomize(store, 17);
-  const auto x = random_vector(rows * e_count * d, 18);
-  auto mask = random_mask(rows * e_count, 19, 0.6);
-  for (int r = 0; r < rows; ++r) mask[r * e_count + e_count - 1] = 1.0f;  // self
-  const auto w = random_vector(x.size(), 20);
-  Workspace<SelfAttention::Buffers> ws(rows, e_count, d, heads);
-  std::vector<float> y(x.size()), dx(x.size());
-  sa.forward(store.values(), CMat(x.data(), rows * e_count, d), mask.data(), e_count, ws.bufs(),
-             Mat(y.data(), rows * e_count, d));
-  sa.backward(store.values(), store.grads(), CMat(x.data(), rows * e_count, d), mask.data(), e_count,
-              ws.bufs(), CMat(y.data(), rows * e_count, d), CMat(w.data(), rows * e_count, d),
-              Mat(dx.data(), rows * e_count, d));
-  const size_t nx = x.size();
-  auto forward = [&](const std::vector<double>& v) {
-    return ref_attention(v.data(), v.data() + nx, store, mask.data(), rows, e_count, d, heads);
+  struct Shape {
+    int rows, e_count, d, heads;
   };
-  const auto point = concat(to_double(x), store.values(), store.buffer_floats());
-  expect_forward_close(y, forward(point), 2e-5, "self-attention");
-  expect_gradient_matches([&](const std::vector<double>& v) { return weighted_sum(forward(v), w); }, point,
-                          concat(dx, store.grads(), store.buffer_floats()), 3e-4, "self-attention", 900);
+  const int wide = 2 * kernels::simd_width() + 3;
+  for (const Shape& sh : {Shape{3, 5, 8, 2}, Shape{2, wide, 32, 2}}) {
+    const int rows = sh.rows, e_count = sh.e_count, d = sh.d, heads = sh.heads;
+    ParamLayout layout;
+    SelfAttention sa(layout, "a", d, heads, true, true);
+    ParamStore store(layout);
+    randomize(store, 17);
+    const auto x = random_vector(rows * e_count * d, 18);
+    auto mask = random_mask(rows * e_count, 19, 0.6);
+    for (int r = 0; r < rows; ++r) mask[r * e_count + e_count - 1] = 1.0f;  // self
+    const auto w = random_vector(x.size(), 20);
+    Workspace<SelfAttention::Buffers> ws(rows, e_count, d, heads);
+    std::vector<float> y(x.size()), dx(x.size());
+    sa.forward(store.values(), CMat(x.data(), rows * e_count, d), mask.data(), e_count, ws.bufs(),
+               Mat(y.data(), rows * e_count, d));
+    sa.backward(store.values(), store.grads(), CMat(x.data(), rows * e_count, d), mask.data(), e_count,
+                ws.bufs(), CMat(y.data(), rows * e_count, d), CMat(w.data(), rows * e_count, d),
+                Mat(dx.data(), rows * e_count, d));
+    const size_t nx = x.size();
+    auto forward = [&](const std::vector<double>& v) {
+      return ref_attention(v.data(), v.data() + nx, store, mask.data(), rows, e_count, d, heads);
+    };
+    const auto point = concat(to_double(x), store.values(), store.buffer_floats());
+    expect_forward_close(y, forward(point), 2e-5, "self-attention");
+    expect_gradient_matches([&](const std::vector<double>& v) { return weighted_sum(forward(v), w); }, point,
+                            concat(dx, store.grads(), store.buffer_floats()), 3e-4, "self-attention", 900);
+  }
 }
 
 TEST(NnLayers, MaskedEntitiesChangeNothingInAttentionAndPooling) {

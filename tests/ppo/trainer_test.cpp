@@ -95,6 +95,14 @@ TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
   c.merge_json("{\"epochs\": 2, \"scene\": \"lockbox\"}", "f.json");
   EXPECT_EQ(c.epochs, 2);
   EXPECT_EQ(c.scene, "lockbox");
+  EXPECT_EQ(c.grad_groups, 8);  // today's default
+  // A run made before grad_groups existed used 16 groups: its config and checkpoint say so by omission.
+  TrainConfig old_run;
+  old_run.merge_run_json("{\"epochs\": 2}", "config.json");
+  EXPECT_EQ(old_run.grad_groups, 16);
+  TrainConfig new_run;
+  new_run.merge_run_json(a.to_json(), "config.json");
+  EXPECT_EQ(new_run.grad_groups, a.grad_groups);
 }
 
 TEST(ScalarNormalizer, DebiasedMeanAndFlooredStd) {

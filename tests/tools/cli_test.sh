@@ -63,6 +63,7 @@ fi
 expect_fail 2 "nn" bench --nn huge
 expect_fail 2 "masks" bench --nn small --masks empty
 expect_fail 2 "without --nn" bench --masks full
+expect_fail 2 "without --nn" bench --masks synthetic
 # A profiled run writes a Chrome trace with one event per env, step and phase (5 phases).
 if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
    grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 50 ]; then

@@ -210,6 +210,26 @@ class DecisionRule(unittest.TestCase):
         self.assertEqual(gate.parse_acceptance("BM_Old missing", "t"), ("BM_Old", "missing"))
 
 
+class BaselineIsa(unittest.TestCase):
+    """A baseline tree from before HNS_ISA gets the current build's instruction set as compiler flags."""
+
+    def tree(self, cmake_text):
+        d = tempfile.mkdtemp()
+        with open(os.path.join(d, "CMakeLists.txt"), "w") as f:
+            f.write(cmake_text)
+        return d
+
+    def test_old_tree_gets_flags_new_tree_keeps_the_option(self):
+        old, new = self.tree("option(HNS_NATIVE ...)\n"), self.tree('set(HNS_ISA "avx2" CACHE STRING "")\n')
+        with redirect_stderr(io.StringIO()):
+            self.assertEqual(gate.isa_args_for(old, ["-DHNS_ISA=avx512", "-DHNS_FMA=ON"]),
+                             ["-DHNS_FMA=ON", "-DCMAKE_CXX_FLAGS=-march=x86-64-v4"])
+            self.assertEqual(gate.isa_args_for(old, ["-DHNS_ISA=native"]), ["-DHNS_NATIVE=ON"])
+            self.assertEqual(gate.isa_args_for(old, ["-DHNS_ISA=avx2"]), ["-DHNS_ISA=avx2"])
+        self.assertEqual(gate.isa_args_for(new, ["-DHNS_ISA=avx512"]), ["-DHNS_ISA=avx512"])
+        self.assertEqual(gate.isa_args_for(old, ["-DHNS_FMA=OFF"]), ["-DHNS_FMA=OFF"])
+
+
 class ExportRevision(unittest.TestCase):
     """An export over an earlier one rewrites exactly the files that differ, with a new time, so that the
     cached build of the earlier export recompiles them (git archive would stamp them with the commit's time)."""
