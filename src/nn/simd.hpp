@@ -1,8 +1,8 @@
 // One arithmetic for two paths: every function here has a float overload and an xsimd batch overload that
 // perform the same IEEE operations lane by lane (fma is fused in both, division is exact in both), so a
 // kernel written once as a template gives bit-identical results in its vector loop, its scalar tail and its
-// scalar reference. The instruction set is fixed at build time (CMake's HNS_ISA: -mavx2 -mfma, -march=x86-64-v4
-// or -march=native).
+// scalar reference. The instruction set is fixed at build time (CMake's HNS_ISA: -mavx2 -mfma,
+// -march=x86-64-v4 or -march=native).
 #pragma once
 
 #include <xsimd/xsimd.hpp>
