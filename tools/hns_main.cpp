@@ -12,7 +12,9 @@
 #include "physics/scene.hpp"
 
 int main(int argc, char** argv) {
-  // A binary built for AVX-512 on an AVX2 machine says so instead of dying of an illegal instruction.
+  // A binary built for AVX-512 on an AVX2 machine says so instead of dying of an illegal instruction. The
+  // start-up check in nn/isa_check.cpp already did this before main (static initialisers included); this
+  // call is what links that check into the binary, and a second line of defence.
   if (const std::string lack = hns::nn::kernels::isa_unsupported(); !lack.empty()) {
     std::cerr << "hns: " << lack << "\n";
     return 2;
