@@ -14,10 +14,12 @@
 #include "cli.hpp"
 #include "physics/presets.hpp"
 #include "ppo/policy.hpp"
-#include "recorder.hpp"
-#include "trajectory.hpp"
+#include "replay/recorder.hpp"
+#include "replay/trajectory.hpp"
 
 namespace hns::tools {
+
+using namespace hns::replay;  // trajectory files, recording, metrics rows
 namespace {
 
 namespace phys = hns::physics;

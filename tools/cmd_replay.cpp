@@ -8,10 +8,12 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "replay/trajectory.hpp"
 #include "replay_html.hpp"
-#include "trajectory.hpp"
 
 namespace hns::tools {
+
+using namespace hns::replay;  // trajectory files, recording, metrics rows
 namespace {
 
 struct ReplayOptions {

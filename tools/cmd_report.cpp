@@ -13,11 +13,14 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "replay/metrics.hpp"
+#include "replay/trajectory.hpp"
 #include "replay_html.hpp"
 #include "report_html.hpp"
-#include "trajectory.hpp"
 
 namespace hns::tools {
+
+using namespace hns::replay;  // trajectory files, recording, metrics rows
 namespace {
 
 namespace fs = std::filesystem;

@@ -21,10 +21,12 @@
 #include "physics/scene.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
-#include "recorder.hpp"
-#include "trajectory.hpp"
+#include "replay/recorder.hpp"
+#include "replay/trajectory.hpp"
 
 namespace hns::tools {
+
+using namespace hns::replay;  // trajectory files, recording, metrics rows
 namespace {
 
 namespace fs = std::filesystem;

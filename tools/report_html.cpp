@@ -8,25 +8,6 @@
 
 namespace hns::tools {
 
-MetricsRows read_metrics_jsonl(std::string_view text) {
-  nlohmann::json rows = nlohmann::json::array();
-  size_t number = 0;
-  while (!text.empty()) {
-    const size_t end = text.find('\n');
-    const std::string_view line = text.substr(0, end);
-    text = end == std::string_view::npos ? std::string_view() : text.substr(end + 1);
-    ++number;
-    if (line.empty()) continue;
-    nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
-    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
-        !row["iteration"].is_number() || !row.contains("agent_steps") || !row["agent_steps"].is_number()) {
-      throw MetricsError(number, "is not an iteration record (a JSON object with iteration, agent_steps)");
-    }
-    rows.push_back(std::move(row));
-  }
-  return MetricsRows{rows.dump(), rows.size()};
-}
-
 // Generated from tools/report_viewer.html by cmake/HnsEmbedText.cmake.
 extern const char kReportViewerHtml[];
 

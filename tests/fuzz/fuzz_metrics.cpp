@@ -3,12 +3,12 @@
 #include <cstdint>
 #include <string_view>
 
-#include "report_html.hpp"
+#include "replay/metrics.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
-    hns::tools::read_metrics_jsonl(std::string_view(reinterpret_cast<const char*>(data), size));
-  } catch (const hns::tools::MetricsError&) {
+    hns::replay::read_metrics_jsonl(std::string_view(reinterpret_cast<const char*>(data), size));
+  } catch (const hns::replay::MetricsError&) {
   }
   return 0;
 }

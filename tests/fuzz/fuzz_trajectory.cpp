@@ -5,14 +5,14 @@
 #include <cstdint>
 #include <string_view>
 
-#include "trajectory.hpp"
+#include "replay/trajectory.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   const std::string_view bytes(reinterpret_cast<const char*>(data), size);
   for (const bool verify : {true, false}) {
     try {
-      hns::tools::decode_trajectory(bytes, verify);
-    } catch (const hns::tools::TrajectoryError&) {
+      hns::replay::decode_trajectory(bytes, verify);
+    } catch (const hns::replay::TrajectoryError&) {
     }
   }
   return 0;

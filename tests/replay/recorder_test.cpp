@@ -1,6 +1,6 @@
 // Episode recording: frames are exactly the game's states (the auto-reset loses nothing), the preparation
 // phase and rewards line up, and recordings are deterministic whatever the thread or env count.
-#include "recorder.hpp"
+#include "replay/recorder.hpp"
 
 #include <gtest/gtest.h>
 
@@ -10,7 +10,7 @@
 
 #include "physics/presets.hpp"
 
-namespace hns::tools {
+namespace hns::replay {
 namespace {
 
 namespace phys = hns::physics;
@@ -168,4 +168,4 @@ TEST(Recorder, RejectsZeroEpisodes) {
 }
 
 }  // namespace
-}  // namespace hns::tools
+}  // namespace hns::replay

@@ -1,5 +1,5 @@
 // Episode recording from a BatchSim (see recorder.hpp for why the batch runs one step longer than the game).
-#include "recorder.hpp"
+#include "replay/recorder.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -7,7 +7,7 @@
 
 #include "physics/scene.hpp"
 
-namespace hns::tools {
+namespace hns::replay {
 namespace {
 
 namespace phys = hns::physics;
@@ -209,4 +209,4 @@ RecordSummary record_episodes(const RecordConfig& config, const ActionFn& action
   return summary;
 }
 
-}  // namespace hns::tools
+}  // namespace hns::replay

@@ -18,9 +18,9 @@
 
 #include "batch/batch_sim.hpp"
 #include "physics/rng.hpp"
-#include "trajectory.hpp"
+#include "replay/trajectory.hpp"
 
-namespace hns::tools {
+namespace hns::replay {
 
 // Chooses the next step's actions of every env (num_envs x max_agents; padding slots are ignored).
 using ActionFn = std::function<void(const batch::BatchSim&, std::span<physics::AgentAction>)>;
@@ -58,4 +58,4 @@ batch::BatchConfig recording_batch_config(const batch::BatchConfig& game);
 RecordSummary record_episodes(const RecordConfig& config, const ActionFn& actions,
                               const std::function<void(const TrajectoryEpisode&)>& sink);
 
-}  // namespace hns::tools
+}  // namespace hns::replay

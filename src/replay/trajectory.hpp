@@ -16,7 +16,7 @@
 #include <string_view>
 #include <vector>
 
-namespace hns::tools {
+namespace hns::replay {
 
 inline constexpr int kTrajectoryVersion =
     2;  // 2: episodes carry a checksum of their payload (1 is still read)
@@ -135,4 +135,4 @@ class TrajectoryWriter {
   uint64_t bytes_ = 0;
 };
 
-}  // namespace hns::tools
+}  // namespace hns::replay

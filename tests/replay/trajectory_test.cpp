@@ -1,5 +1,5 @@
 // Trajectory files: encode/decode round trip, the streaming writer, and clear errors for malformed files.
-#include "trajectory.hpp"
+#include "replay/trajectory.hpp"
 
 #include <gtest/gtest.h>
 
@@ -16,7 +16,7 @@
 
 #include "physics/rng.hpp"
 
-namespace hns::tools {
+namespace hns::replay {
 namespace {
 
 using nlohmann::json;
@@ -387,4 +387,4 @@ TEST(TrajectoryErrors, CorruptedBytesNeverCrash) {
 }
 
 }  // namespace
-}  // namespace hns::tools
+}  // namespace hns::replay

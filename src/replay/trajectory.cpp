@@ -1,5 +1,5 @@
 // Trajectory files: encoding, streaming writes and a checking decoder (format: docs/trajectory-format.md).
-#include "trajectory.hpp"
+#include "replay/trajectory.hpp"
 
 #include <algorithm>
 #include <bit>
@@ -16,7 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
-namespace hns::tools {
+namespace hns::replay {
 namespace {
 
 using nlohmann::json;
@@ -609,4 +609,4 @@ uint64_t TrajectoryWriter::finish() {
   return bytes_;
 }
 
-}  // namespace hns::tools
+}  // namespace hns::replay
