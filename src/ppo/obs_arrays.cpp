@@ -17,21 +17,38 @@ nn::ObsShape obs_shape(const batch::Layout& L) {
   return o;
 }
 
-void ObsArrays::copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
-  auto copy = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<float>& src, size_t per_row) {
-    if (per_row > 0) std::memcpy(dst.data() + row0 * per_row, src.data(), sizeof(float) * rows * per_row);
+StepObsView StepObsView::of(const batch::BatchState& s) {
+  StepObsView v;
+  v.self = s.obs_self.data();
+  v.lidar = s.lidar.data();
+  v.agents = s.obs_agents.data();
+  v.boxes = s.obs_boxes.data();
+  v.ramps = s.obs_ramps.data();
+  v.mask_agents = s.mask_agents.data();
+  v.mask_boxes = s.mask_boxes.data();
+  v.mask_ramps = s.mask_ramps.data();
+  v.value_mask_agents = s.value_mask_agents.data();
+  v.value_mask_boxes = s.value_mask_boxes.data();
+  v.value_mask_ramps = s.value_mask_ramps.data();
+  v.step_count = s.step_count.data();
+  v.episode = s.episode.data();
+  return v;
+}
+
+void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
+  auto copy = [&](nn::FloatBuffer& dst, const float* src, size_t per_row) {
+    if (per_row > 0) std::memcpy(dst.data() + row0 * per_row, src, sizeof(float) * rows * per_row);
   };
-  auto widen = [&](nn::FloatBuffer& dst, const batch::AlignedBuffer<uint8_t>& src, size_t per_row) {
+  auto widen = [&](nn::FloatBuffer& dst, const uint8_t* p, size_t per_row) {
     float* d = dst.data() + row0 * per_row;
-    const uint8_t* p = src.data();
     for (size_t i = 0; i < rows * per_row; ++i) d[i] = float(p[i]);
   };
   const size_t na = size_t(shape.num_other_agents());
-  copy(self, s.obs_self, shape.self_features);
+  copy(self, s.self, shape.self_features);
   copy(lidar, s.lidar, shape.lidar_rays);
-  copy(agents, s.obs_agents, na * shape.agent_features);
-  copy(boxes, s.obs_boxes, size_t(shape.max_boxes) * shape.box_features);
-  copy(ramps, s.obs_ramps, size_t(shape.max_ramps) * shape.ramp_features);
+  copy(agents, s.agents, na * shape.agent_features);
+  copy(boxes, s.boxes, size_t(shape.max_boxes) * shape.box_features);
+  copy(ramps, s.ramps, size_t(shape.max_ramps) * shape.ramp_features);
   widen(agents_seen, s.mask_agents, na);
   widen(boxes_seen, s.mask_boxes, shape.max_boxes);
   widen(ramps_seen, s.mask_ramps, shape.max_ramps);

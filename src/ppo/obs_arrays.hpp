@@ -10,11 +10,35 @@ namespace hns::ppo {
 // The networks' observation shape for a batch of this layout.
 nn::ObsShape obs_shape(const batch::Layout& layout);
 
+// One batch step's observations and masks as the batch lays them out (BatchState's obs_* and mask fields,
+// env-major, max_agents rows per env), wherever they are held: a BatchSim's state, or arrays a caller owns
+// (the Python module's Policy.act). Rows = envs x max_agents.
+struct StepObsView {
+  const float* self = nullptr;                 // [rows, 11]
+  const float* lidar = nullptr;                // [rows, 30]
+  const float* agents = nullptr;               // [rows, A - 1, 11]
+  const float* boxes = nullptr;                // [rows, B, 15]
+  const float* ramps = nullptr;                // [rows, R, 12]
+  const uint8_t* mask_agents = nullptr;        // [rows, A - 1] policy masks, 0/1
+  const uint8_t* mask_boxes = nullptr;         // [rows, B]
+  const uint8_t* mask_ramps = nullptr;         // [rows, R]
+  const uint8_t* value_mask_agents = nullptr;  // [rows, A - 1] value masks, 0/1
+  const uint8_t* value_mask_boxes = nullptr;   // [rows, B]
+  const uint8_t* value_mask_ramps = nullptr;   // [rows, R]
+  const int32_t* step_count = nullptr;  // [envs] env steps taken in the current episode (0: first step)
+  const int32_t* episode = nullptr;     // [envs] episode number of the env
+
+  static StepObsView of(const batch::BatchState& s);
+};
+
 // One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
 struct ObsArrays {
   // Copies the observations and masks of every agent row of the batch's current step (rows = envs x max
   // agents) into rows [row0, row0 + rows); the reset flags are left to the caller.
-  void copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0);
+  void copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0);
+  void copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
+    copy_step(StepObsView::of(s), shape, rows, row0);
+  }
 
   nn::FloatBuffer self, lidar, agents, boxes, ramps;
   nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;

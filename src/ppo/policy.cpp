@@ -25,43 +25,64 @@ std::unique_ptr<Policy> Policy::from_checkpoint(const std::string& path, uint64_
   return std::unique_ptr<Policy>(new Policy(std::move(trainer), seed));
 }
 
+const nn::ObsShape& Policy::obs_shape() const {
+  return trainer_->net().config().obs;
+}
+
+int Policy::state_width() const {
+  return trainer_->net().state_width();
+}
+
+void Policy::resize(int envs) {
+  const int G = envs * obs_shape().max_agents;
+  if (rows_ == G) return;
+  const int heads = trainer_->net().heads().num_heads(), sw = state_width();
+  rows_ = G;
+  obs_.allocate(obs_shape(), size_t(G));
+  state_p_.resize(size_t(G) * sw);
+  state_v_.resize(size_t(G) * sw);
+  uniforms_.resize(size_t(G) * heads);
+  actions_.assign(size_t(G) * heads, 0);
+  streams_.assign(size_t(envs), physics::Rng());
+  stream_episode_.assign(size_t(envs), -1);
+}
+
 void Policy::act(const batch::BatchSim& sim, std::span<physics::AgentAction> actions) {
-  const nn::ActorCritic& net = trainer_->net();
-  const nn::ObsShape& shape = net.config().obs;
+  const nn::ObsShape& shape = obs_shape();
   const batch::Layout& L = sim.layout();
   if (L.max_agents != shape.max_agents || L.max_boxes != shape.max_boxes || L.max_ramps != shape.max_ramps) {
     throw std::invalid_argument("the policy was trained on scene '" + trainer_->config().scene +
                                 "'; this batch has other entity maxima");
   }
-  const int E = sim.num_envs(), A = L.max_agents, G = E * A;
-  const int heads = net.heads().num_heads(), sw = net.state_width();
-  if (rows_ != G) {
-    rows_ = G;
-    obs_.allocate(shape, size_t(G));
-    state_p_.resize(size_t(G) * sw);
-    state_v_.resize(size_t(G) * sw);
-    uniforms_.resize(size_t(G) * heads);
-    actions_.assign(size_t(G) * heads, 0);
-    streams_.assign(size_t(E), physics::Rng());
-    stream_episode_.assign(size_t(E), -1);
-  }
-  const batch::BatchState& s = sim.state();
-  obs_.copy_step(s, shape, size_t(G), 0);
-  for (int e = 0; e < E; ++e) {
-    if (stream_episode_[e] != s.episode[e]) {
-      streams_[e] = physics::Rng(seed_ ^ kPlayStream, uint64_t(e), uint64_t(s.episode[e]));
-      stream_episode_[e] = s.episode[e];
+  resize(sim.num_envs());
+  act(StepObsView::of(sim.state()), sim.num_envs(), state_p_.data(), state_v_.data(), actions);
+}
+
+void Policy::act(const StepObsView& obs, int envs, float* policy_state, float* value_state,
+                 std::span<physics::AgentAction> actions) {
+  const nn::ActorCritic& net = trainer_->net();
+  const nn::ObsShape& shape = obs_shape();
+  const int A = shape.max_agents, G = envs * A;
+  const int heads = net.heads().num_heads();
+  if (actions.size() != size_t(G))
+    throw std::invalid_argument("Policy::act: actions must hold envs x max_agents");
+  resize(envs);
+  obs_.copy_step(obs, shape, size_t(G), 0);
+  for (int e = 0; e < envs; ++e) {
+    if (stream_episode_[e] != obs.episode[e]) {
+      streams_[e] = physics::Rng(seed_ ^ kPlayStream, uint64_t(e), uint64_t(obs.episode[e]));
+      stream_episode_[e] = obs.episode[e];
     }
     for (int a = 0; a < A; ++a) {
-      obs_.reset[size_t(e) * A + a] = s.step_count[e] == 0 ? 1.0f : 0.0f;
+      obs_.reset[size_t(e) * A + a] = obs.step_count[e] == 0 ? 1.0f : 0.0f;
       for (int h = 0; h < heads; ++h)
         uniforms_[(size_t(e) * A + a) * heads + h] = float(streams_[e].next_u64() >> 40) * 0x1.0p-24f;
     }
   }
   nn::ActorCritic::ActOutputs out;
   out.actions = actions_.data();
-  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, state_p_.data(), state_v_.data(),
-          uniforms_.data(), out);
+  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, policy_state, value_state, uniforms_.data(),
+          out);
   for (int g = 0; g < G; ++g) {
     const int32_t* a = actions_.data() + size_t(g) * heads;
     actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};

@@ -26,17 +26,28 @@ class Policy {
 
   // The config of the run the networks come from (its scene and model).
   const TrainConfig& config() const { return trainer_->config(); }
-  // Fills actions (num_envs x max_agents) for the batch's current observations. The batch's layout must be
-  // the one the networks were trained on (same scene).
+  // The observation shape the networks were trained on (max agents, boxes, ramps of the scene).
+  const nn::ObsShape& obs_shape() const;
+  // LSTM state floats per agent slot and network: (c, h).
+  int state_width() const;
+  // Fills actions (num_envs x max_agents) for the batch's current observations, with the LSTM states kept
+  // here. The batch's layout must be the one the networks were trained on (same scene).
   void act(const batch::BatchSim& sim, std::span<physics::AgentAction> actions);
+  // The same for `envs` envs of observations held anywhere (obs_shape()'s layout), with the caller's LSTM
+  // states: policy_state and value_state [envs x max_agents, state_width()] are read and replaced (zeroed
+  // first for the envs whose step_count is 0). Draws the same uniforms as act(sim), so a caller that steps
+  // its own batch with these actions plays the same episodes as `hns play --checkpoint`.
+  void act(const StepObsView& obs, int envs, float* policy_state, float* value_state,
+           std::span<physics::AgentAction> actions);
 
  private:
   Policy(std::unique_ptr<Trainer> owned, uint64_t seed);
+  void resize(int envs);
 
   std::unique_ptr<Trainer> owned_;
   const Trainer* trainer_;
   uint64_t seed_;
-  int rows_ = 0;
+  int rows_ = 0;  // agent rows the buffers below are sized for
   ObsArrays obs_;
   nn::FloatBuffer state_p_, state_v_, uniforms_;
   std::vector<int32_t> actions_;
