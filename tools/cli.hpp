@@ -4,6 +4,7 @@
 #include <CLI/CLI.hpp>
 
 #include "batch/batch_sim.hpp"
+#include "batch/host.hpp"
 
 #include <functional>
 #include <string>
@@ -43,12 +44,9 @@ void check_output_path(const std::string& flag, const std::string& path,
 // Throws physics::ConfigError.
 uint64_t parse_seed(const std::string& flag, const std::string& text);
 
-// Refuses (physics::ConfigError, exit 2) work whose estimated memory exceeds what the machine has available
-// (MemAvailable), naming `what` (e.g. "--envs 100000") and both figures.
-void check_memory(const std::string& what, size_t bytes);
-
-// Worker threads a request really gets: the request, or the machine's hardware threads if fewer.
-int usable_threads(int requested);
+// Worker threads and memory: the batch library's (shared with the Python module).
+using batch::check_memory;
+using batch::usable_threads;
 // "T threads" or, when the machine has fewer, "T threads requested, U available: U used".
 std::string threads_text(int requested);
 

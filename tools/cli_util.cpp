@@ -1,11 +1,8 @@
-#include <tbb/info.h>
-#include <unistd.h>
 #include <nlohmann/json.hpp>
 
 #include <charconv>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <system_error>
 
 #include "cli.hpp"
@@ -44,29 +41,6 @@ uint64_t parse_seed(const std::string& flag, const std::string& text) {
                                " is invalid: must be a whole number in [0, 18446744073709551615]");
   }
   return value;
-}
-
-void check_memory(const std::string& what, size_t bytes) {
-  std::ifstream meminfo("/proc/meminfo");
-  std::string key;
-  size_t kb = 0;
-  size_t available = 0;
-  while (meminfo >> key >> kb) {
-    if (key == "MemAvailable:") available = kb * 1024;
-    meminfo.ignore(64, '\n');
-  }
-  if (available == 0) available = size_t(::sysconf(_SC_AVPHYS_PAGES)) * size_t(::sysconf(_SC_PAGESIZE));
-  if (available > 0 && bytes > available) {
-    char buf[256];
-    std::snprintf(buf, sizeof buf, "%s needs about %.1f GB of memory, this machine has %.1f GB available",
-                  what.c_str(), double(bytes) / (1 << 30), double(available) / (1 << 30));
-    throw physics::ConfigError(buf);
-  }
-}
-
-int usable_threads(int requested) {
-  const int hardware = tbb::info::default_concurrency();
-  return requested <= 0 ? hardware : std::min(requested, hardware);
 }
 
 std::string threads_text(int requested) {
