@@ -51,3 +51,25 @@ if(HNS_BUILD_BENCH)
     hns_missing("Google Benchmark" "libbenchmark-dev")
   endif()
 endif()
+
+# Python module: Debian's python3 (the interpreter python3-numpy and python3-pytest install for; a pyenv or
+# virtualenv python3 earlier on PATH usually lacks numpy), its headers, pybind11 and numpy.
+if(HNS_PYTHON)
+  if(NOT DEFINED Python3_EXECUTABLE AND EXISTS /usr/bin/python3)
+    set(Python3_EXECUTABLE /usr/bin/python3)
+  endif()
+  find_package(Python3 COMPONENTS Interpreter Development.Module QUIET)
+  if(NOT Python3_Development.Module_FOUND)
+    hns_missing("Python 3 headers (for the Python module; -DHNS_PYTHON=OFF builds without it)" "python3-dev")
+  endif()
+  find_package(pybind11 2.6 CONFIG QUIET)
+  if(NOT pybind11_FOUND)
+    hns_missing("pybind11 (for the Python module; -DHNS_PYTHON=OFF builds without it)" "pybind11-dev")
+  endif()
+  execute_process(COMMAND ${Python3_EXECUTABLE} -c "import numpy" RESULT_VARIABLE HNS_NUMPY_MISSING
+                  OUTPUT_QUIET ERROR_QUIET)
+  if(HNS_NUMPY_MISSING)
+    hns_missing("numpy for ${Python3_EXECUTABLE} (for the Python module; -DHNS_PYTHON=OFF builds without it)"
+                "python3-numpy")
+  endif()
+endif()

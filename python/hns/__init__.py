@@ -1,0 +1,81 @@
+"""hns: the batch hide-and-seek simulator of hns as numpy arrays, trained policies, and recordings.
+
+    import hns
+    env = hns.BatchEnv(scene="quadrant", num_envs=1024, seed=1)
+    obs, info = env.reset()
+    obs, reward, terminated, truncated, info = env.step(actions)   # actions: (num_envs, max_agents, 5)
+
+The manual is docs/python.md of the hns repository.
+"""
+import json as _json
+
+try:
+    import numpy as _numpy  # noqa: F401  (the compiled module hands out numpy arrays)
+except ImportError as _error:  # pragma: no cover - depends on the interpreter
+    import sys as _sys
+
+    raise ImportError(
+        "hns needs numpy for this interpreter (%s); on Debian: apt-get install python3-numpy and run "
+        "Debian's python3" % _sys.executable
+    ) from _error
+
+# The instruction set this package was compiled for (CMake's HNS_ISA). Checked before the compiled module
+# loads: an AVX-512 build on a CPU without AVX-512 is an ImportError here, not a stopped interpreter.
+_BUILD_ISA = "@HNS_ISA@"
+_ISA_FLAGS = {"avx2": ("avx2", "fma"), "avx512": ("avx2", "fma", "avx512f", "avx512bw", "avx512cd", "avx512dq", "avx512vl")}
+
+
+def _check_cpu():
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line.split(":", 1)[1].split() for line in f if line.startswith("flags")), None)
+    except OSError:
+        return
+    if flags is None:
+        return
+    missing = [flag for flag in _ISA_FLAGS.get(_BUILD_ISA, ()) if flag not in flags]
+    if missing:
+        raise ImportError(
+            "this hns package was built with HNS_ISA=%s, which needs %s; this CPU lacks %s: rebuild with "
+            "HNS_ISA=avx2 tools/test (or cmake -DHNS_ISA=avx2)" % (_BUILD_ISA, ", ".join(_ISA_FLAGS[_BUILD_ISA]), ", ".join(missing))
+        )
+
+
+_check_cpu()
+
+from ._hns import (  # noqa: F401
+    BatchEnv,
+    Policy,
+    TrajectoryError,
+    __version__,
+    isa,
+    read_trajectory,
+    scenes,
+)
+from ._hns import _read_metrics_json
+
+
+def read_metrics(path):
+    """The iterations of a run's metrics.jsonl as a list of dicts, one per iteration, in file order.
+
+    Reads like `hns report` does: blank lines are skipped, a line that is not an iteration record raises
+    ValueError naming the file and line.
+    """
+    return _json.loads(_read_metrics_json(str(path)))
+
+
+def metrics_column(rows, key, default=float("nan")):
+    """One metric of read_metrics() rows as a numpy float array (default where a row lacks it).
+
+    Nested keys are joined with '/', e.g. metrics_column(rows, "time/total").
+    """
+    out = []
+    for row in rows:
+        value = row
+        for part in key.split("/"):
+            if not isinstance(value, dict) or part not in value:
+                value = default
+                break
+            value = value[part]
+        out.append(default if value is None else value)
+    return _numpy.asarray(out, dtype=float)

@@ -1,0 +1,674 @@
+// The compiled part of the Python package `hns` (hns/_hns*.so; python/hns/__init__.py is its front):
+// the batch simulator as a Gymnasium-style vector environment whose arrays view the batch's own buffers,
+// trained policies, and the trajectory and metrics readers. Thin by design: argument checks and array
+// plumbing here, the work in the libraries (hns_batch, hns_ppo, hns_replay). docs/python.md is the manual.
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <atomic>
+#include <cstring>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "batch/host.hpp"
+#include "physics/presets.hpp"
+#include "physics/scene.hpp"
+#include "ppo/obs_arrays.hpp"
+#include "ppo/policy.hpp"
+#include "replay/metrics.hpp"
+#include "replay/trajectory.hpp"
+
+namespace py = pybind11;
+
+namespace hns::python {
+namespace {
+
+namespace phys = hns::physics;
+using Shape = std::vector<py::ssize_t>;
+
+// The fields of a step's observation dict: the policy's and the value net's inputs, and the two per-env
+// counters a policy needs (step_count 0 starts an episode: LSTM states zeroed; the episode number seeds its
+// sampling stream).
+constexpr const char* kObsFields[] = {"obs_self",         "lidar",           "obs_agents",
+                                      "obs_boxes",        "obs_ramps",       "mask_agents",
+                                      "mask_boxes",       "mask_ramps",      "value_mask_agents",
+                                      "value_mask_boxes", "value_mask_ramps", "step_count",
+                                      "episode"};
+
+// Per-env dimensions of a batch field with more than one axis per env; other fields are (envs, count), or
+// (envs,) for one element per env.
+Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) {
+  const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others;
+  const struct {
+    const char* name;
+    Shape dims;
+  } table[] = {
+      {"agent_pos", {A, 3}},          {"agent_rot", {A, 2}},          {"agent_vel", {A, 3}},
+      {"box_pos", {B, 3}},            {"box_rot", {B, 2}},            {"box_vel", {B, 3}},
+      {"box_size", {B, 3}},           {"ramp_pos", {R, 3}},           {"ramp_rot", {R, 2}},
+      {"ramp_vel", {R, 3}},           {"vis_agents", {A, A}},         {"vis_boxes", {A, B}},
+      {"vis_ramps", {A, R}},          {"lidar", {A, batch::Layout::kLidar}},
+      {"box_pos_start", {B, 3}},      {"ramp_pos_start", {R, 3}},
+      {"obs_self", {A, batch::Layout::kSelfFeatures}},
+      {"obs_agents", {A, O, batch::Layout::kAgentFeatures}},
+      {"mask_agents", {A, O}},        {"value_mask_agents", {A, O}},
+      {"obs_boxes", {A, B, batch::Layout::kBoxFeatures}},
+      {"mask_boxes", {A, B}},         {"value_mask_boxes", {A, B}},
+      {"obs_ramps", {A, R, batch::Layout::kRampFeatures}},
+      {"mask_ramps", {A, R}},         {"value_mask_ramps", {A, R}},
+  };
+  for (const auto& row : table) {
+    if (name != row.name) continue;
+    size_t product = 1;
+    for (py::ssize_t d : row.dims) product *= size_t(d);
+    if (product != count) throw std::logic_error("hns: the shape table of batch field " + name + " is stale");
+    return row.dims;
+  }
+  if (count == 1) return {};
+  return {py::ssize_t(count)};
+}
+
+// A read-only array over `data` (C order) kept alive by `owner`; `as_bool` views 0/1 bytes as numpy bool.
+template <class T>
+py::array make_view(const T* data, const Shape& shape, const py::object& owner, bool as_bool = false) {
+  py::dtype dtype = as_bool ? py::dtype("?") : py::dtype::of<T>();
+  py::array a(dtype, shape, Shape{}, data, owner);
+  a.attr("flags").attr("writeable") = false;
+  return a;
+}
+
+// Copies of every array of a dict (copy=True results).
+py::dict copy_dict(const py::dict& views) {
+  py::dict out;
+  for (auto item : views) out[item.first] = py::reinterpret_borrow<py::array>(item.second).attr("copy")();
+  return out;
+}
+
+// Refuses a second concurrent call on one object (the GIL is released while it works).
+class BusyGuard {
+ public:
+  BusyGuard(std::atomic<bool>& flag, const char* what) : flag_(flag) {
+    if (flag_.exchange(true)) {
+      throw std::runtime_error(std::string(what) +
+                               ": called while another thread is inside a call on the same object");
+    }
+  }
+  ~BusyGuard() { flag_ = false; }
+  BusyGuard(const BusyGuard&) = delete;
+  BusyGuard& operator=(const BusyGuard&) = delete;
+
+ private:
+  std::atomic<bool>& flag_;
+};
+
+[[noreturn]] void raise(PyObject* type, const std::string& message) {
+  PyErr_SetString(type, message.c_str());
+  throw py::error_already_set();
+}
+
+std::string shape_text(const py::array& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+std::string shape_text(const Shape& shape) {
+  std::string s = "(";
+  for (size_t i = 0; i < shape.size(); ++i) s += (i ? ", " : "") + std::to_string(shape[i]);
+  return s + (shape.size() == 1 ? ",)" : ")");
+}
+
+// `value` as an array (numpy converts lists); TypeError naming `what` otherwise.
+py::array as_array(const py::handle& value, const std::string& what) {
+  py::array a = py::array::ensure(value);
+  if (!a) raise(PyExc_TypeError, what + ": expected a numpy array, got " + std::string(py::str(value.get_type())));
+  return a;
+}
+
+void check_shape(const py::array& a, const Shape& want, const std::string& what) {
+  bool ok = a.ndim() == py::ssize_t(want.size());
+  for (size_t i = 0; ok && i < want.size(); ++i) ok = a.shape(i) == want[i];
+  if (!ok) raise(PyExc_ValueError, what + ": shape " + shape_text(a) + ", expected " + shape_text(want));
+}
+
+// A C-contiguous array of exactly T (no conversion: a wrong dtype is a TypeError naming `what`).
+template <class T>
+py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& what, const char* dtype_name) {
+  if (!a.dtype().is(py::dtype::of<T>())) {
+    raise(PyExc_TypeError, what + ": dtype " + std::string(py::str(a.dtype())) + ", expected " + dtype_name);
+  }
+  return py::array_t<T, py::array::c_style>::ensure(a);
+}
+
+uint64_t seed_from(const py::int_& seed) {
+  const py::int_ lo(0), hi(std::numeric_limits<uint64_t>::max());
+  if (seed < lo || seed > hi) {
+    raise(PyExc_ValueError, "seed = " + std::string(py::str(py::handle(seed))) + " is invalid: must be in [0, 2^64 - 1]");
+  }
+  return seed.cast<uint64_t>();
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// BatchEnv
+
+class BatchEnv {
+ public:
+  BatchEnv(const std::string& scene, const phys::WorldConfig& world, int num_envs, int threads, uint64_t seed)
+      : scene_(scene) {
+    if (num_envs < 1) {
+      raise(PyExc_ValueError, "num_envs = " + std::to_string(num_envs) + " is invalid: must be >= 1");
+    }
+    if (threads < 0) {
+      raise(PyExc_ValueError,
+            "threads = " + std::to_string(threads) + " is invalid: must be >= 0 (0 = every hardware thread)");
+    }
+    batch::BatchConfig config;
+    config.world = world;
+    config.num_envs = num_envs;
+    config.threads = batch::usable_threads(threads);
+    config.seed = seed;
+    config.validate();  // physics::ConfigError (ValueError) naming the field
+    batch::check_memory("num_envs = " + std::to_string(num_envs), config.estimated_bytes());
+    sim_ = std::make_shared<batch::BatchSim>(config);
+    const batch::Layout& L = sim_->layout();
+    actions_.resize(size_t(num_envs) * L.max_agents);
+
+    // Every field viewed once: the buffers never move while the sim lives, and the arrays keep it alive
+    // through a capsule (not through this object, so no reference cycle).
+    auto* keep = new std::shared_ptr<batch::BatchSim>(sim_);
+    owner_ = py::capsule(keep, [](void* p) { delete static_cast<std::shared_ptr<batch::BatchSim>*>(p); });
+    const batch::BatchState& s = sim_->state();
+    const py::ssize_t E = num_envs;
+    using batch::Layout;  // the field sizes below name it
+#define HNS_VIEW_FIELD(type, name, count, doc)                               \
+  {                                                                          \
+    Shape shape{E};                                                          \
+    for (py::ssize_t d : field_dims(#name, size_t(count), L)) shape.push_back(d); \
+    fields_[#name] = make_view(s.name.data(), shape, owner_);                \
+    docs_[#name] = doc;                                                      \
+  }
+    HNS_BATCH_FIELDS(HNS_VIEW_FIELD)
+#undef HNS_VIEW_FIELD
+    for (const char* name : kObsFields) obs_[name] = fields_[name];
+    truncated_ = make_view(s.done.data(), Shape{E}, owner_, /*as_bool=*/true);
+    py::array_t<bool> never(E);
+    std::memset(never.mutable_data(), 0, size_t(E));
+    never.attr("flags").attr("writeable") = false;
+    terminated_view_ = never;
+  }
+
+  py::tuple reset(const std::optional<py::handle>& episodes, bool copy) {
+    BusyGuard busy(busy_, "BatchEnv.reset");
+    if (episodes && !episodes->is_none()) {
+      py::array a = as_array(*episodes, "episodes");
+      if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
+        raise(PyExc_TypeError, "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
+      }
+      check_shape(a, Shape{py::ssize_t(num_envs())}, "episodes");
+      auto v = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+      std::vector<int32_t> eps(static_cast<size_t>(num_envs()));
+      for (int e = 0; e < num_envs(); ++e) {
+        const int64_t x = v.at(e);
+        if (x < 0 || x > std::numeric_limits<int32_t>::max()) {
+          raise(PyExc_ValueError, "episodes[" + std::to_string(e) + "] = " + std::to_string(x) +
+                                      " is invalid: must be in [0, 2^31 - 1]");
+        }
+        eps[size_t(e)] = int32_t(x);
+      }
+      py::gil_scoped_release release;
+      sim_->reset(eps);
+    } else {
+      py::gil_scoped_release release;
+      sim_->reset();
+    }
+    return py::make_tuple(observations(copy), info(copy));
+  }
+
+  py::tuple step(const py::handle& actions, bool copy) {
+    BusyGuard busy(busy_, "BatchEnv.step");
+    read_actions(actions);
+    {
+      py::gil_scoped_release release;
+      sim_->step(actions_);
+    }
+    py::object reward = fields_["reward"], truncated = truncated_, terminated = terminated_view_;
+    if (copy) {
+      reward = reward.attr("copy")();
+      truncated = truncated.attr("copy")();
+      terminated = terminated.attr("copy")();
+    }
+    return py::make_tuple(observations(copy), reward, terminated, truncated, info(copy));
+  }
+
+  py::dict observations(bool copy) const { return copy ? copy_dict(obs_) : py::dict(obs_); }
+  py::dict state(bool copy) const { return copy ? copy_dict(fields_) : py::dict(fields_); }
+  py::dict field_docs() const { return py::dict(docs_); }
+
+  // Per-env bookkeeping and the episodes that ended in the last step.
+  py::dict info(bool copy) const {
+    py::dict d;
+    for (const char* name : {"episode", "step_count", "episode_return", "agent_exists", "agent_hider"}) {
+      d[name] = copy ? py::object(fields_[name].attr("copy")()) : py::object(fields_[name]);
+    }
+    const auto finished = sim_->finished();
+    const py::ssize_t n = py::ssize_t(finished.size());
+    py::array_t<int32_t> env(n), episode(n), length(n);
+    py::array_t<bool> discarded(n);
+    const char* float_names[] = {"hider_return",      "seeker_return",     "max_box_move_prep", "num_box_lock_prep",
+                                 "max_ramp_move_prep", "num_ramp_lock_prep", "max_box_move",      "num_box_lock",
+                                 "max_ramp_move",      "num_ramp_lock"};
+    std::vector<py::array_t<float>> floats;
+    for (size_t k = 0; k < std::size(float_names); ++k) floats.emplace_back(n);
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const batch::EpisodeStats& st = finished[size_t(i)];
+      env.mutable_at(i) = st.env;
+      episode.mutable_at(i) = st.episode;
+      length.mutable_at(i) = st.length;
+      discarded.mutable_at(i) = st.discarded;
+      const float values[] = {st.hider_return,       st.seeker_return,      st.max_box_move_prep,
+                              st.num_box_lock_prep,  st.max_ramp_move_prep, st.num_ramp_lock_prep,
+                              st.max_box_move,       st.num_box_lock,       st.max_ramp_move,
+                              st.num_ramp_lock};
+      for (size_t k = 0; k < std::size(float_names); ++k) floats[k].mutable_at(i) = values[k];
+    }
+    py::dict ended;
+    ended["env"] = env;
+    ended["episode"] = episode;
+    ended["length"] = length;
+    ended["discarded"] = discarded;
+    for (size_t k = 0; k < std::size(float_names); ++k) ended[float_names[k]] = floats[k];
+    d["finished"] = ended;
+    d["unstable_resets"] = sim_->unstable_resets();
+    return d;
+  }
+
+  // The scene env `env` is playing (copies): walls, doors, counts and spawns.
+  py::dict scene(int env) const {
+    if (env < 0 || env >= num_envs()) {
+      raise(PyExc_IndexError, "env = " + std::to_string(env) + " is out of range: the batch has " +
+                                  std::to_string(num_envs()) + " envs");
+    }
+    const phys::Scene& sc = sim_->world(env).scene();
+    py::dict d;
+    d["layout"] = phys::layout_name(sc.layout);
+    d["outer_walls"] = sc.outer_walls;
+    py::array_t<double> walls(Shape{py::ssize_t(sc.wall_boxes.size()), 6});
+    for (size_t i = 0; i < sc.wall_boxes.size(); ++i) {
+      const phys::StaticBox& w = sc.wall_boxes[i];
+      const double v[6] = {w.cx, w.cy, w.cz, w.hx, w.hy, w.hz};
+      for (int k = 0; k < 6; ++k) walls.mutable_at(py::ssize_t(i), k) = v[k];
+    }
+    d["walls"] = walls;
+    py::array_t<int32_t> doors(Shape{py::ssize_t(sc.doors.size()), 4});
+    for (size_t i = 0; i < sc.doors.size(); ++i) {
+      const phys::DoorCells& c = sc.doors[i];
+      const int v[4] = {c.x1, c.y1, c.x2, c.y2};
+      for (int k = 0; k < 4; ++k) doors.mutable_at(py::ssize_t(i), k) = v[k];
+    }
+    d["doors"] = doors;
+    auto spawns = [](const std::vector<phys::Spawn>& list) {
+      py::array_t<double> a(Shape{py::ssize_t(list.size()), 6});
+      for (size_t i = 0; i < list.size(); ++i) {
+        const phys::Spawn& sp = list[i];
+        const double v[6] = {sp.x, sp.y, sp.z, sp.sx, sp.sy, sp.sz};
+        for (int k = 0; k < 6; ++k) a.mutable_at(py::ssize_t(i), k) = v[k];
+      }
+      return a;
+    };
+    d["num_hiders"] = sc.num_hiders;
+    d["num_seekers"] = sc.num_seekers;
+    d["num_elongated"] = sc.num_elongated;
+    d["agents"] = spawns(sc.agents);
+    d["boxes"] = spawns(sc.boxes);
+    d["ramps"] = spawns(sc.ramps);
+    return d;
+  }
+
+  int num_envs() const { return sim_->num_envs(); }
+  const batch::Layout& layout() const { return sim_->layout(); }
+  const batch::BatchConfig& config() const { return sim_->config(); }
+  const std::string& scene_name() const { return scene_; }
+  uintptr_t field_address(const std::string& name) const {
+    if (!fields_.contains(name)) raise(PyExc_KeyError, "no batch field " + name);
+    return uintptr_t(py::reinterpret_borrow<py::array>(fields_[name.c_str()]).data());
+  }
+
+ private:
+  // Checks an (num_envs, max_agents, 5) integer array and copies it into actions_.
+  void read_actions(const py::handle& value) {
+    py::array a = as_array(value, "actions");
+    if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
+      raise(PyExc_TypeError, "actions: dtype " + std::string(py::str(a.dtype())) +
+                                 " is not an integer dtype (use int or uint8: movement bins 0..10, grab and "
+                                 "lock 0/1)");
+    }
+    const int A = layout().max_agents;
+    check_shape(a, Shape{num_envs(), A, 5}, "actions");
+    auto check_copy = [&](const auto* p) {
+      for (size_t i = 0; i < actions_.size(); ++i) {
+        const auto* x = p + i * 5;
+        for (int k = 0; k < 5; ++k) {
+          const long long v = static_cast<long long>(x[k]);
+          const int hi = k < 3 ? phys::kMoveBins - 1 : 1;
+          if (v < 0 || v > hi) {
+            raise(PyExc_ValueError, "actions[" + std::to_string(i / A) + ", " + std::to_string(i % A) + ", " +
+                                        std::to_string(k) + "] = " + std::to_string(v) + " is out of range: " +
+                                        (k < 3 ? "movement bins are 0..10" : "grab and lock are 0 or 1"));
+          }
+        }
+        actions_[i] = {uint8_t(x[0]), uint8_t(x[1]), uint8_t(x[2]), uint8_t(x[3]), uint8_t(x[4])};
+      }
+    };
+    if (a.dtype().is(py::dtype::of<uint8_t>())) {
+      check_copy(py::array_t<uint8_t, py::array::c_style>::ensure(a).data());
+    } else {
+      check_copy(py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(a).data());
+    }
+  }
+
+  std::string scene_;
+  std::shared_ptr<batch::BatchSim> sim_;
+  std::vector<phys::AgentAction> actions_;
+  py::capsule owner_;
+  py::dict fields_, docs_, obs_;
+  py::array truncated_;        // bool view of the batch's done flags: the horizon ends a game (a time limit)
+  py::array terminated_view_;  // always false: no game ends otherwise
+  std::atomic<bool> busy_{false};
+};
+
+std::unique_ptr<BatchEnv> make_env(const std::string& scene, int num_envs, int threads, const py::int_& seed,
+                                   std::optional<int> hiders, std::optional<int> seekers,
+                                   std::optional<int> boxes, std::optional<int> ramps,
+                                   std::optional<int> horizon) {
+  phys::WorldConfig world = phys::world_preset(scene);
+  phys::apply_overrides(world, phys::CountOverrides{hiders, seekers, boxes, ramps});
+  if (horizon) {
+    if (*horizon < 1) {
+      raise(PyExc_ValueError, "horizon = " + std::to_string(*horizon) + " is invalid: must be >= 1");
+    }
+    world.horizon = *horizon;
+  }
+  return std::make_unique<BatchEnv>(scene, world, num_envs, threads, seed_from(seed));
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Policy
+
+class Policy {
+ public:
+  Policy(const std::string& path, uint64_t seed) : path_(path) {
+    if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
+    try {
+      policy_ = ppo::Policy::from_checkpoint(path, seed);
+    } catch (const phys::ConfigError& e) {
+      raise(PyExc_ValueError, path + ": " + e.what());
+    } catch (const std::runtime_error& e) {
+      raise(PyExc_ValueError, e.what());
+    }
+  }
+
+  py::tuple act(const py::dict& obs, const py::handle& state_in) {
+    BusyGuard busy(busy_, "Policy.act");
+    const nn::ObsShape& S = policy_->obs_shape();
+    const py::ssize_t A = S.max_agents, O = S.num_other_agents(), B = S.max_boxes, R = S.max_ramps;
+    auto get = [&](const char* key) {
+      if (!obs.contains(key)) raise(PyExc_KeyError, std::string("obs['") + key + "'] is missing");
+      return as_array(obs[key], std::string("obs['") + key + "']");
+    };
+    py::array self = get("obs_self");
+    if (self.ndim() < 1) raise(PyExc_ValueError, "obs['obs_self']: expected (num_envs, max_agents, 11)");
+    const py::ssize_t E = self.shape(0);
+    std::vector<py::object> keep;  // the contiguous arrays read below
+    auto floats = [&](const char* key, Shape per_row) {
+      py::array a = get(key);
+      Shape want{E, A};
+      want.insert(want.end(), per_row.begin(), per_row.end());
+      check_shape(a, want, std::string("obs['") + key + "']");
+      auto c = exact<float>(a, std::string("obs['") + key + "']", "float32");
+      keep.push_back(c);
+      return c.data();
+    };
+    auto bytes = [&](const char* key, py::ssize_t n) {
+      py::array a = get(key);
+      check_shape(a, Shape{E, A, n}, std::string("obs['") + key + "']");
+      if (a.dtype().is(py::dtype("?"))) a = a.attr("view")(py::dtype::of<uint8_t>());
+      auto c = exact<uint8_t>(a, std::string("obs['") + key + "']", "uint8 or bool");
+      keep.push_back(c);
+      return c.data();
+    };
+    auto counters = [&](const char* key) {
+      py::array a = get(key);
+      check_shape(a, Shape{E}, std::string("obs['") + key + "']");
+      auto c = exact<int32_t>(a, std::string("obs['") + key + "']", "int32");
+      keep.push_back(c);
+      return c.data();
+    };
+    ppo::StepObsView v;
+    v.self = floats("obs_self", {S.self_features});
+    v.lidar = floats("lidar", {S.lidar_rays});
+    v.agents = floats("obs_agents", {O, S.agent_features});
+    v.boxes = floats("obs_boxes", {B, S.box_features});
+    v.ramps = floats("obs_ramps", {R, S.ramp_features});
+    v.mask_agents = bytes("mask_agents", O);
+    v.mask_boxes = bytes("mask_boxes", B);
+    v.mask_ramps = bytes("mask_ramps", R);
+    v.value_mask_agents = bytes("value_mask_agents", O);
+    v.value_mask_boxes = bytes("value_mask_boxes", B);
+    v.value_mask_ramps = bytes("value_mask_ramps", R);
+    v.step_count = counters("step_count");
+    v.episode = counters("episode");
+
+    const py::ssize_t sw = policy_->state_width();
+    py::array state = as_array(state_in, "state");
+    check_shape(state, Shape{2, E, A, sw}, "state");
+    auto state_c = exact<float>(state, "state", "float32");
+    py::array_t<float> next(Shape{2, E, A, sw});
+    std::memcpy(next.mutable_data(), state_c.data(), sizeof(float) * size_t(2 * E * A * sw));
+    py::array_t<uint8_t> actions(Shape{E, A, 5});
+    {
+      py::gil_scoped_release release;
+      float* p = next.mutable_data();
+      std::vector<phys::AgentAction> out(size_t(E * A));
+      policy_->act(v, int(E), p, p + E * A * sw, out);
+      std::memcpy(actions.mutable_data(), out.data(), out.size() * sizeof(phys::AgentAction));
+    }
+    return py::make_tuple(actions, next);
+  }
+
+  py::array_t<float> initial_state(int num_envs) const {
+    if (num_envs < 1) {
+      raise(PyExc_ValueError, "num_envs = " + std::to_string(num_envs) + " is invalid: must be >= 1");
+    }
+    py::array_t<float> s(Shape{2, num_envs, policy_->obs_shape().max_agents, policy_->state_width()});
+    std::memset(s.mutable_data(), 0, sizeof(float) * size_t(s.size()));
+    return s;
+  }
+
+  std::unique_ptr<BatchEnv> make_env(int num_envs, int threads, const py::int_& seed) const {
+    return std::make_unique<BatchEnv>(policy_->config().scene, policy_->config().world(), num_envs, threads,
+                                      seed_from(seed));
+  }
+
+  const ppo::TrainConfig& config() const { return policy_->config(); }
+  int state_width() const { return policy_->state_width(); }
+  int max_agents() const { return policy_->obs_shape().max_agents; }
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+  std::unique_ptr<ppo::Policy> policy_;
+  std::atomic<bool> busy_{false};
+};
+
+// ---------------------------------------------------------------------------------------------------------
+// Trajectory files and metrics
+
+template <class T>
+py::array_t<T> block(const std::vector<T>& v, const Shape& shape) {
+  py::array_t<T> a(shape);
+  if (!v.empty()) std::memcpy(a.mutable_data(), v.data(), v.size() * sizeof(T));
+  return a;
+}
+
+py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
+  py::dict d;
+  d["scene"] = ep.scene;
+  d["layout"] = ep.layout;
+  d["seed"] = ep.seed;
+  d["env"] = ep.env;
+  d["episode"] = ep.episode;
+  d["horizon"] = ep.horizon;
+  d["prep_steps"] = ep.prep_steps;
+  d["step_time"] = ep.step_time;
+  d["num_hiders"] = ep.num_hiders;
+  d["num_seekers"] = ep.num_seekers;
+  d["num_boxes"] = ep.num_boxes;
+  d["num_elongated"] = ep.num_elongated;
+  d["num_ramps"] = ep.num_ramps;
+  d["outer_walls"] = ep.outer_walls;
+  d["hider_return"] = ep.hider_return;
+  d["seeker_return"] = ep.seeker_return;
+  d["frames"] = ep.frames;
+  py::array_t<double> walls(Shape{py::ssize_t(ep.walls.size()), 6});
+  for (size_t i = 0; i < ep.walls.size(); ++i)
+    for (int k = 0; k < 6; ++k) walls.mutable_at(py::ssize_t(i), k) = ep.walls[i][size_t(k)];
+  d["walls"] = walls;
+  py::array_t<double> sizes(Shape{py::ssize_t(ep.box_sizes.size()), 3});
+  for (size_t i = 0; i < ep.box_sizes.size(); ++i)
+    for (int k = 0; k < 3; ++k) sizes.mutable_at(py::ssize_t(i), k) = ep.box_sizes[i][size_t(k)];
+  d["box_sizes"] = sizes;
+  py::array_t<double> rect(4);
+  for (int k = 0; k < 4; ++k) rect.mutable_at(k) = ep.restrict_rect[size_t(k)];
+  d["restrict_rect"] = rect;
+
+  const py::ssize_t F = ep.frames, A = ep.num_agents(), B = ep.num_boxes, R = ep.num_ramps, O = B + R;
+  d["agent_pose"] = block(ep.agent_pose, {F, A, 4});
+  d["box_pose"] = block(ep.box_pose, {F, B, 4});
+  d["ramp_pose"] = block(ep.ramp_pose, {F, R, 4});
+  d["object_lock"] = block(ep.object_lock, {F, O});
+  d["object_locker"] = block(ep.object_locker, {F, O});
+  d["agent_holding"] = block(ep.agent_holding, {F, A});
+  d["vis_agents"] = block(ep.vis_agents, {F, A, A});
+  d["vis_boxes"] = block(ep.vis_boxes, {F, A, B});
+  d["vis_ramps"] = block(ep.vis_ramps, {F, A, R});
+  py::array_t<float> lidar(Shape{F, A, replay::kTrajectoryLidarRays});
+  for (size_t i = 0; i < ep.lidar.size(); ++i) lidar.mutable_data()[i] = float(ep.lidar[i] * replay::kLidarUnit);
+  d["lidar"] = lidar;
+  d["reward"] = block(ep.reward, {F, A});
+  d["prep"] = block(ep.prep, {F});
+  d["action"] = block(ep.action, {F, A, replay::kActionFields});
+  return d;
+}
+
+py::dict read_trajectory(const std::string& path) {
+  if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
+  replay::TrajectoryFile file;
+  {
+    py::gil_scoped_release release;
+    file = replay::read_trajectory(path);
+  }
+  py::dict d;
+  d["version"] = file.version;
+  d["created_by"] = file.created_by;
+  d["policy"] = file.policy;
+  d["warnings"] = file.warnings;
+  py::list episodes;
+  for (const replay::TrajectoryEpisode& ep : file.episodes) episodes.append(episode_dict(ep));
+  d["episodes"] = episodes;
+  return d;
+}
+
+std::string read_metrics_json(const std::string& path) {
+  if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
+  std::string text;
+  try {
+    text = replay::read_file_bytes(path);
+  } catch (const replay::TrajectoryError& e) {
+    raise(PyExc_OSError, e.what());
+  }
+  try {
+    return replay::read_metrics_jsonl(text).json;
+  } catch (const replay::MetricsError& e) {
+    raise(PyExc_ValueError, path + ":" + std::to_string(e.line) + ": " + e.what());
+  }
+}
+
+}  // namespace
+}  // namespace hns::python
+
+PYBIND11_MODULE(_hns, m) {
+  using namespace hns::python;
+  m.doc() = "hns: the batch hide-and-seek simulator, trained policies and recordings (docs/python.md)";
+  m.attr("__version__") = HNS_VERSION;
+  m.attr("isa") = HNS_ISA_SETTING;
+  m.attr("scenes") = py::make_tuple("quadrant", "full", "empty", "lockbox");
+  py::register_exception<hns::replay::TrajectoryError>(m, "TrajectoryError", PyExc_ValueError);
+
+  py::class_<BatchEnv>(m, "BatchEnv", R"doc(
+A batch of hide-and-seek games stepped together (TBB threads; the GIL is released while stepping).
+
+BatchEnv(scene="quadrant", num_envs=64, threads=0, seed=1, hiders=None, seekers=None, boxes=None,
+         ramps=None, horizon=None)
+
+Arrays returned by reset(), step() and state() view the batch's own buffers (no copy, read-only): they
+stay valid as long as any of them or the env lives, and their contents change at the next step() or
+reset(). Pass copy=True for arrays of your own.)doc")
+      .def(py::init(&make_env), py::arg("scene") = "quadrant", py::arg("num_envs") = 64, py::arg("threads") = 0,
+           py::arg("seed") = py::int_(1), py::arg("hiders") = py::none(), py::arg("seekers") = py::none(),
+           py::arg("boxes") = py::none(), py::arg("ramps") = py::none(), py::arg("horizon") = py::none())
+      .def("reset", &BatchEnv::reset, py::arg("episodes") = py::none(), py::arg("copy") = false,
+           "Starts episode 0 of every env (or episodes[e] of env e). Returns (obs, info).")
+      .def("step", &BatchEnv::step, py::arg("actions"), py::arg("copy") = false,
+           "One step of every env. actions: integer array (num_envs, max_agents, 5): movement x, y, turn bins "
+           "0..10 (5 = none), grab and lock 0/1; padding slots are ignored. Returns (obs, reward, terminated, "
+           "truncated, info); an env whose episode ended is reset in the same step (its obs is the new "
+           "episode's first).")
+      .def("observations", &BatchEnv::observations, py::arg("copy") = false,
+           "The current observation dict (what reset() and step() return).")
+      .def("state", &BatchEnv::state, py::arg("copy") = false,
+           "Every field of the batch state (bodies, shapes, perception, rewards, statistics, observations) by "
+           "name, shaped (num_envs, ...).")
+      .def("field_docs", &BatchEnv::field_docs, "What each state() field holds, with units and shape.")
+      .def("scene", &BatchEnv::scene, py::arg("env"),
+           "The scene env `env` plays now: walls (n, 6: centre, half extents, m), doors (cells), spawns.")
+      .def("_field_address", &BatchEnv::field_address)
+      .def_property_readonly("num_envs", &BatchEnv::num_envs)
+      .def_property_readonly("max_agents", [](const BatchEnv& e) { return e.layout().max_agents; })
+      .def_property_readonly("max_boxes", [](const BatchEnv& e) { return e.layout().max_boxes; })
+      .def_property_readonly("max_ramps", [](const BatchEnv& e) { return e.layout().max_ramps; })
+      .def_property_readonly("horizon", [](const BatchEnv& e) { return e.config().world.horizon; })
+      .def_property_readonly("prep_steps", [](const BatchEnv& e) { return e.config().world.prep_steps(); })
+      .def_property_readonly("threads", [](const BatchEnv& e) { return e.config().threads; })
+      .def_property_readonly("seed", [](const BatchEnv& e) { return e.config().seed; })
+      .def_property_readonly("scene_name", &BatchEnv::scene_name);
+
+  py::class_<Policy>(m, "Policy", R"doc(
+The policy of a training checkpoint, sampling actions like `hns play --checkpoint`.
+
+Policy.load(path, seed=1); act(obs, state) -> (actions, new_state) where obs is a BatchEnv observation dict
+and state a float32 array (2, num_envs, max_agents, state_width): the policy's and the value net's LSTM
+states (initial_state(num_envs) gives zeros; an env at step_count 0 has its states zeroed first).)doc")
+      .def_static(
+          "load",
+          [](const std::string& path, const py::int_& seed) { return std::make_unique<Policy>(path, seed_from(seed)); },
+          py::arg("path"), py::arg("seed") = py::int_(1))
+      .def("act", &Policy::act, py::arg("obs"), py::arg("state"))
+      .def("initial_state", &Policy::initial_state, py::arg("num_envs"))
+      .def("make_env", &Policy::make_env, py::arg("num_envs") = 64, py::arg("threads") = 0,
+           py::arg("seed") = py::int_(1), "A BatchEnv of the game the checkpoint was trained on.")
+      .def_property_readonly("scene", [](const Policy& p) { return p.config().scene; })
+      .def_property_readonly("model", [](const Policy& p) { return p.config().model; })
+      .def_property_readonly("config_json", [](const Policy& p) { return p.config().to_json(); })
+      .def_property_readonly("state_width", &Policy::state_width)
+      .def_property_readonly("max_agents", &Policy::max_agents)
+      .def_property_readonly("path", &Policy::path);
+
+  m.def("read_trajectory", &read_trajectory, py::arg("path"),
+        "A trajectory file (hns play, hns train's replay.traj) as a dict of headers and numpy blocks.");
+  m.def("_read_metrics_json", &read_metrics_json, py::arg("path"));
+}
