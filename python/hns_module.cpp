@@ -35,43 +35,85 @@ using Shape = std::vector<py::ssize_t>;
 // The fields of a step's observation dict: the policy's and the value net's inputs, and the two per-env
 // counters a policy needs (step_count 0 starts an episode: LSTM states zeroed; the episode number seeds its
 // sampling stream).
-constexpr const char* kObsFields[] = {"obs_self",         "lidar",           "obs_agents",
-                                      "obs_boxes",        "obs_ramps",       "mask_agents",
-                                      "mask_boxes",       "mask_ramps",      "value_mask_agents",
-                                      "value_mask_boxes", "value_mask_ramps", "step_count",
-                                      "episode"};
+constexpr const char* kObsFields[] = {
+    "obs_self",         "lidar",      "obs_agents", "obs_boxes",         "obs_ramps",
+    "mask_agents",      "mask_boxes", "mask_ramps", "value_mask_agents", "value_mask_boxes",
+    "value_mask_ramps", "step_count", "episode"};
 
-// Per-env dimensions of a batch field with more than one axis per env; other fields are (envs, count), or
-// (envs,) for one element per env.
+// Per-env dimensions of every batch field (BatchState, HNS_BATCH_FIELDS): a dimension of size 1 stays an
+// axis (lockbox's one agent still has an agent axis); per-env scalars have none.
 Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) {
   const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others;
   const struct {
     const char* name;
     Shape dims;
   } table[] = {
-      {"agent_pos", {A, 3}},          {"agent_rot", {A, 2}},          {"agent_vel", {A, 3}},
-      {"box_pos", {B, 3}},            {"box_rot", {B, 2}},            {"box_vel", {B, 3}},
-      {"box_size", {B, 3}},           {"ramp_pos", {R, 3}},           {"ramp_rot", {R, 2}},
-      {"ramp_vel", {R, 3}},           {"vis_agents", {A, A}},         {"vis_boxes", {A, B}},
-      {"vis_ramps", {A, R}},          {"lidar", {A, batch::Layout::kLidar}},
-      {"box_pos_start", {B, 3}},      {"ramp_pos_start", {R, 3}},
+      {"agent_pos", {A, 3}},
+      {"agent_rot", {A, 2}},
+      {"agent_vel", {A, 3}},
+      {"agent_angvel", {A}},
+      {"agent_exists", {A}},
+      {"agent_hider", {A}},
+      {"box_pos", {B, 3}},
+      {"box_rot", {B, 2}},
+      {"box_vel", {B, 3}},
+      {"box_angvel", {B}},
+      {"box_size", {B, 3}},
+      {"box_exists", {B}},
+      {"box_locked", {B}},
+      {"box_locker", {B}},
+      {"ramp_pos", {R, 3}},
+      {"ramp_rot", {R, 2}},
+      {"ramp_vel", {R, 3}},
+      {"ramp_angvel", {R}},
+      {"ramp_exists", {R}},
+      {"ramp_locked", {R}},
+      {"ramp_locker", {R}},
+      {"num_walls", {}},
+      {"vis_agents", {A, A}},
+      {"vis_boxes", {A, B}},
+      {"vis_ramps", {A, R}},
+      {"lidar", {A, batch::Layout::kLidar}},
+      {"reward", {A}},
+      {"done", {}},
+      {"step_count", {}},
+      {"episode", {}},
+      {"box_pos_start", {B, 3}},
+      {"ramp_pos_start", {R, 3}},
+      {"stat_prep", {4}},
+      {"episode_return", {2}},
+      {"task_target", {}},
+      {"task_dist", {}},
+      {"task_locked", {B}},
       {"obs_self", {A, batch::Layout::kSelfFeatures}},
       {"obs_agents", {A, O, batch::Layout::kAgentFeatures}},
-      {"mask_agents", {A, O}},        {"value_mask_agents", {A, O}},
+      {"mask_agents", {A, O}},
+      {"value_mask_agents", {A, O}},
       {"obs_boxes", {A, B, batch::Layout::kBoxFeatures}},
-      {"mask_boxes", {A, B}},         {"value_mask_boxes", {A, B}},
+      {"mask_boxes", {A, B}},
+      {"value_mask_boxes", {A, B}},
       {"obs_ramps", {A, R, batch::Layout::kRampFeatures}},
-      {"mask_ramps", {A, R}},         {"value_mask_ramps", {A, R}},
+      {"mask_ramps", {A, R}},
+      {"value_mask_ramps", {A, R}},
   };
-  for (const auto& row : table) {
-    if (name != row.name) continue;
-    size_t product = 1;
-    for (py::ssize_t d : row.dims) product *= size_t(d);
-    if (product != count) throw std::logic_error("hns: the shape table of batch field " + name + " is stale");
-    return row.dims;
+  Shape dims;
+  bool found = false;
+  if (name.rfind("shape_box_", 0) == 0) {
+    dims = {L.shape_boxes}, found = true;
+  } else if (name.rfind("shape_wedge_", 0) == 0) {
+    dims = {L.shape_wedges}, found = true;
+  } else if (name.rfind("shape_sphere_", 0) == 0) {
+    dims = {L.shape_spheres}, found = true;
   }
-  if (count == 1) return {};
-  return {py::ssize_t(count)};
+  for (const auto& row : table) {
+    if (name == row.name) dims = row.dims, found = true;
+  }
+  size_t product = 1;
+  for (py::ssize_t d : dims) product *= size_t(d);
+  if (!found || product != count) {
+    throw std::logic_error("hns: the shape table of the Python module does not describe batch field " + name);
+  }
+  return dims;
 }
 
 // A read-only array over `data` (C order) kept alive by `owner`; `as_bool` views 0/1 bytes as numpy bool.
@@ -126,7 +168,8 @@ std::string shape_text(const Shape& shape) {
 // `value` as an array (numpy converts lists); TypeError naming `what` otherwise.
 py::array as_array(const py::handle& value, const std::string& what) {
   py::array a = py::array::ensure(value);
-  if (!a) raise(PyExc_TypeError, what + ": expected a numpy array, got " + std::string(py::str(value.get_type())));
+  if (!a)
+    raise(PyExc_TypeError, what + ": expected a numpy array, got " + std::string(py::str(value.get_type())));
   return a;
 }
 
@@ -138,7 +181,8 @@ void check_shape(const py::array& a, const Shape& want, const std::string& what)
 
 // A C-contiguous array of exactly T (no conversion: a wrong dtype is a TypeError naming `what`).
 template <class T>
-py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& what, const char* dtype_name) {
+py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& what,
+                                         const char* dtype_name) {
   if (!a.dtype().is(py::dtype::of<T>())) {
     raise(PyExc_TypeError, what + ": dtype " + std::string(py::str(a.dtype())) + ", expected " + dtype_name);
   }
@@ -148,7 +192,8 @@ py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& 
 uint64_t seed_from(const py::int_& seed) {
   const py::int_ lo(0), hi(std::numeric_limits<uint64_t>::max());
   if (seed < lo || seed > hi) {
-    raise(PyExc_ValueError, "seed = " + std::string(py::str(py::handle(seed))) + " is invalid: must be in [0, 2^64 - 1]");
+    raise(PyExc_ValueError,
+          "seed = " + std::string(py::str(py::handle(seed))) + " is invalid: must be in [0, 2^64 - 1]");
   }
   return seed.cast<uint64_t>();
 }
@@ -185,12 +230,12 @@ class BatchEnv {
     const batch::BatchState& s = sim_->state();
     const py::ssize_t E = num_envs;
     using batch::Layout;  // the field sizes below name it
-#define HNS_VIEW_FIELD(type, name, count, doc)                               \
-  {                                                                          \
-    Shape shape{E};                                                          \
+#define HNS_VIEW_FIELD(type, name, count, doc)                                    \
+  {                                                                               \
+    Shape shape{E};                                                               \
     for (py::ssize_t d : field_dims(#name, size_t(count), L)) shape.push_back(d); \
-    fields_[#name] = make_view(s.name.data(), shape, owner_);                \
-    docs_[#name] = doc;                                                      \
+    fields_[#name] = make_view(s.name.data(), shape, owner_);                     \
+    docs_[#name] = doc;                                                           \
   }
     HNS_BATCH_FIELDS(HNS_VIEW_FIELD)
 #undef HNS_VIEW_FIELD
@@ -207,7 +252,8 @@ class BatchEnv {
     if (episodes && !episodes->is_none()) {
       py::array a = as_array(*episodes, "episodes");
       if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
-        raise(PyExc_TypeError, "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
+        raise(PyExc_TypeError,
+              "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
       }
       check_shape(a, Shape{py::ssize_t(num_envs())}, "episodes");
       auto v = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(a);
@@ -245,9 +291,15 @@ class BatchEnv {
     return py::make_tuple(observations(copy), reward, terminated, truncated, info(copy));
   }
 
-  py::dict observations(bool copy) const { return copy ? copy_dict(obs_) : py::dict(obs_); }
-  py::dict state(bool copy) const { return copy ? copy_dict(fields_) : py::dict(fields_); }
-  py::dict field_docs() const { return py::dict(docs_); }
+  py::dict observations(bool copy) const {
+    return copy ? copy_dict(obs_) : py::dict(obs_);
+  }
+  py::dict state(bool copy) const {
+    return copy ? copy_dict(fields_) : py::dict(fields_);
+  }
+  py::dict field_docs() const {
+    return py::dict(docs_);
+  }
 
   // Per-env bookkeeping and the episodes that ended in the last step.
   py::dict info(bool copy) const {
@@ -259,9 +311,9 @@ class BatchEnv {
     const py::ssize_t n = py::ssize_t(finished.size());
     py::array_t<int32_t> env(n), episode(n), length(n);
     py::array_t<bool> discarded(n);
-    const char* float_names[] = {"hider_return",      "seeker_return",     "max_box_move_prep", "num_box_lock_prep",
-                                 "max_ramp_move_prep", "num_ramp_lock_prep", "max_box_move",      "num_box_lock",
-                                 "max_ramp_move",      "num_ramp_lock"};
+    const char* float_names[] = {
+        "hider_return",       "seeker_return", "max_box_move_prep", "num_box_lock_prep", "max_ramp_move_prep",
+        "num_ramp_lock_prep", "max_box_move",  "num_box_lock",      "max_ramp_move",     "num_ramp_lock"};
     std::vector<py::array_t<float>> floats;
     for (size_t k = 0; k < std::size(float_names); ++k) floats.emplace_back(n);
     for (py::ssize_t i = 0; i < n; ++i) {
@@ -270,9 +322,9 @@ class BatchEnv {
       episode.mutable_at(i) = st.episode;
       length.mutable_at(i) = st.length;
       discarded.mutable_at(i) = st.discarded;
-      const float values[] = {st.hider_return,       st.seeker_return,      st.max_box_move_prep,
-                              st.num_box_lock_prep,  st.max_ramp_move_prep, st.num_ramp_lock_prep,
-                              st.max_box_move,       st.num_box_lock,       st.max_ramp_move,
+      const float values[] = {st.hider_return,      st.seeker_return,      st.max_box_move_prep,
+                              st.num_box_lock_prep, st.max_ramp_move_prep, st.num_ramp_lock_prep,
+                              st.max_box_move,      st.num_box_lock,       st.max_ramp_move,
                               st.num_ramp_lock};
       for (size_t k = 0; k < std::size(float_names); ++k) floats[k].mutable_at(i) = values[k];
     }
@@ -329,10 +381,18 @@ class BatchEnv {
     return d;
   }
 
-  int num_envs() const { return sim_->num_envs(); }
-  const batch::Layout& layout() const { return sim_->layout(); }
-  const batch::BatchConfig& config() const { return sim_->config(); }
-  const std::string& scene_name() const { return scene_; }
+  int num_envs() const {
+    return sim_->num_envs();
+  }
+  const batch::Layout& layout() const {
+    return sim_->layout();
+  }
+  const batch::BatchConfig& config() const {
+    return sim_->config();
+  }
+  const std::string& scene_name() const {
+    return scene_;
+  }
   uintptr_t field_address(const std::string& name) const {
     if (!fields_.contains(name)) raise(PyExc_KeyError, "no batch field " + name);
     return uintptr_t(py::reinterpret_borrow<py::array>(fields_[name.c_str()]).data());
@@ -357,7 +417,8 @@ class BatchEnv {
           const int hi = k < 3 ? phys::kMoveBins - 1 : 1;
           if (v < 0 || v > hi) {
             raise(PyExc_ValueError, "actions[" + std::to_string(i / A) + ", " + std::to_string(i % A) + ", " +
-                                        std::to_string(k) + "] = " + std::to_string(v) + " is out of range: " +
+                                        std::to_string(k) + "] = " + std::to_string(v) +
+                                        " is out of range: " +
                                         (k < 3 ? "movement bins are 0..10" : "grab and lock are 0 or 1"));
           }
         }
@@ -557,7 +618,8 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   d["vis_boxes"] = block(ep.vis_boxes, {F, A, B});
   d["vis_ramps"] = block(ep.vis_ramps, {F, A, R});
   py::array_t<float> lidar(Shape{F, A, replay::kTrajectoryLidarRays});
-  for (size_t i = 0; i < ep.lidar.size(); ++i) lidar.mutable_data()[i] = float(ep.lidar[i] * replay::kLidarUnit);
+  for (size_t i = 0; i < ep.lidar.size(); ++i)
+    lidar.mutable_data()[i] = float(ep.lidar[i] * replay::kLidarUnit);
   d["lidar"] = lidar;
   d["reward"] = block(ep.reward, {F, A});
   d["prep"] = block(ep.prep, {F});
@@ -618,21 +680,24 @@ BatchEnv(scene="quadrant", num_envs=64, threads=0, seed=1, hiders=None, seekers=
 Arrays returned by reset(), step() and state() view the batch's own buffers (no copy, read-only): they
 stay valid as long as any of them or the env lives, and their contents change at the next step() or
 reset(). Pass copy=True for arrays of your own.)doc")
-      .def(py::init(&make_env), py::arg("scene") = "quadrant", py::arg("num_envs") = 64, py::arg("threads") = 0,
-           py::arg("seed") = py::int_(1), py::arg("hiders") = py::none(), py::arg("seekers") = py::none(),
-           py::arg("boxes") = py::none(), py::arg("ramps") = py::none(), py::arg("horizon") = py::none())
+      .def(py::init(&make_env), py::arg("scene") = "quadrant", py::arg("num_envs") = 64,
+           py::arg("threads") = 0, py::arg("seed") = py::int_(1), py::arg("hiders") = py::none(),
+           py::arg("seekers") = py::none(), py::arg("boxes") = py::none(), py::arg("ramps") = py::none(),
+           py::arg("horizon") = py::none())
       .def("reset", &BatchEnv::reset, py::arg("episodes") = py::none(), py::arg("copy") = false,
            "Starts episode 0 of every env (or episodes[e] of env e). Returns (obs, info).")
-      .def("step", &BatchEnv::step, py::arg("actions"), py::arg("copy") = false,
-           "One step of every env. actions: integer array (num_envs, max_agents, 5): movement x, y, turn bins "
-           "0..10 (5 = none), grab and lock 0/1; padding slots are ignored. Returns (obs, reward, terminated, "
-           "truncated, info); an env whose episode ended is reset in the same step (its obs is the new "
-           "episode's first).")
+      .def(
+          "step", &BatchEnv::step, py::arg("actions"), py::arg("copy") = false,
+          "One step of every env. actions: integer array (num_envs, max_agents, 5): movement x, y, turn bins "
+          "0..10 (5 = none), grab and lock 0/1; padding slots are ignored. Returns (obs, reward, terminated, "
+          "truncated, info); an env whose episode ended is reset in the same step (its obs is the new "
+          "episode's first).")
       .def("observations", &BatchEnv::observations, py::arg("copy") = false,
            "The current observation dict (what reset() and step() return).")
-      .def("state", &BatchEnv::state, py::arg("copy") = false,
-           "Every field of the batch state (bodies, shapes, perception, rewards, statistics, observations) by "
-           "name, shaped (num_envs, ...).")
+      .def(
+          "state", &BatchEnv::state, py::arg("copy") = false,
+          "Every field of the batch state (bodies, shapes, perception, rewards, statistics, observations) by "
+          "name, shaped (num_envs, ...).")
       .def("field_docs", &BatchEnv::field_docs, "What each state() field holds, with units and shape.")
       .def("scene", &BatchEnv::scene, py::arg("env"),
            "The scene env `env` plays now: walls (n, 6: centre, half extents, m), doors (cells), spawns.")
@@ -655,7 +720,9 @@ and state a float32 array (2, num_envs, max_agents, state_width): the policy's a
 states (initial_state(num_envs) gives zeros; an env at step_count 0 has its states zeroed first).)doc")
       .def_static(
           "load",
-          [](const std::string& path, const py::int_& seed) { return std::make_unique<Policy>(path, seed_from(seed)); },
+          [](const std::string& path, const py::int_& seed) {
+            return std::make_unique<Policy>(path, seed_from(seed));
+          },
           py::arg("path"), py::arg("seed") = py::int_(1))
       .def("act", &Policy::act, py::arg("obs"), py::arg("state"))
       .def("initial_state", &Policy::initial_state, py::arg("num_envs"))

@@ -65,17 +65,8 @@ def read_metrics(path):
 
 
 def metrics_column(rows, key, default=float("nan")):
-    """One metric of read_metrics() rows as a numpy float array (default where a row lacks it).
+    """One metric of read_metrics() rows as a numpy float array, `default` where a row lacks it.
 
-    Nested keys are joined with '/', e.g. metrics_column(rows, "time/total").
+    Example: metrics_column(rows, "hider_reward") against metrics_column(rows, "agent_steps").
     """
-    out = []
-    for row in rows:
-        value = row
-        for part in key.split("/"):
-            if not isinstance(value, dict) or part not in value:
-                value = default
-                break
-            value = value[part]
-        out.append(default if value is None else value)
-    return _numpy.asarray(out, dtype=float)
+    return _numpy.asarray([row.get(key, default) for row in rows], dtype=float)

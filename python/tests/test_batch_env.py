@@ -1,0 +1,249 @@
+"""hns.BatchEnv: shapes and dtypes, zero-copy views, agreement with the C++ simulator, determinism, errors."""
+import gc
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import hns
+
+OBS_FIELDS = {
+    "obs_self": (np.float32, ("A", 11)),
+    "lidar": (np.float32, ("A", 30)),
+    "obs_agents": (np.float32, ("A", "A-1", 11)),
+    "obs_boxes": (np.float32, ("A", "B", 15)),
+    "obs_ramps": (np.float32, ("A", "R", 12)),
+    "mask_agents": (np.uint8, ("A", "A-1")),
+    "mask_boxes": (np.uint8, ("A", "B")),
+    "mask_ramps": (np.uint8, ("A", "R")),
+    "value_mask_agents": (np.uint8, ("A", "A-1")),
+    "value_mask_boxes": (np.uint8, ("A", "B")),
+    "value_mask_ramps": (np.uint8, ("A", "R")),
+    "step_count": (np.int32, ()),
+    "episode": (np.int32, ()),
+}
+
+
+def random_actions(rng, env):
+    a = rng.integers(0, 11, size=(env.num_envs, env.max_agents, 5), dtype=np.uint8)
+    a[..., 3:] &= 1
+    return a
+
+
+@pytest.mark.parametrize("scene", ["quadrant", "full", "lockbox"])
+def test_shapes_and_dtypes(scene):
+    env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
+    sizes = {"A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes, "R": env.max_ramps}
+    obs, info = env.reset()
+    assert set(obs) == set(OBS_FIELDS)
+    for name, (dtype, dims) in OBS_FIELDS.items():
+        assert obs[name].dtype == dtype, name
+        assert obs[name].shape == (3,) + tuple(sizes.get(d, d) for d in dims), name
+        assert obs[name].flags.c_contiguous and not obs[name].flags.writeable, name
+    actions = random_actions(np.random.default_rng(0), env)
+    obs, reward, terminated, truncated, info = env.step(actions)
+    assert reward.dtype == np.float32 and reward.shape == (3, env.max_agents)
+    assert terminated.dtype == np.bool_ and terminated.shape == (3,)
+    assert truncated.dtype == np.bool_ and truncated.shape == (3,)
+    assert info["agent_exists"].shape == (3, env.max_agents)
+    assert info["episode_return"].shape == (3, 2)
+    state = env.state()
+    assert state["agent_pos"].shape == (3, env.max_agents, 3)
+    assert state["vis_boxes"].shape == (3, env.max_agents, env.max_boxes)
+    assert state["num_walls"].shape == (3,)
+    assert set(env.field_docs()) == set(state)
+    scene_info = env.scene(0)
+    assert scene_info["walls"].ndim == 2 and scene_info["walls"].shape[1] == 6
+    assert scene_info["agents"].shape == (scene_info["num_hiders"] + scene_info["num_seekers"], 6)
+
+
+def test_views_are_the_batch_buffers_without_copies():
+    env = hns.BatchEnv(scene="quadrant", num_envs=4, threads=1, seed=1)
+    obs, _ = env.reset()
+    for name in OBS_FIELDS:
+        assert obs[name].__array_interface__["data"][0] == env._field_address(name), name
+    before = obs["obs_self"].copy()
+    owned, _ = env.reset(copy=True)
+    obs2, reward, _, truncated, _ = env.step(np.full((4, env.max_agents, 5), [10, 10, 0, 0, 0], dtype=np.uint8))
+    # The same memory, now holding the new step: a view is live, a copy is not.
+    assert obs2["obs_self"].__array_interface__["data"][0] == obs["obs_self"].__array_interface__["data"][0]
+    assert np.shares_memory(obs["obs_self"], obs2["obs_self"])
+    assert not np.array_equal(obs["obs_self"], before)
+    assert np.array_equal(owned["obs_self"], before)
+    assert not np.shares_memory(owned["obs_self"], obs["obs_self"]) and owned["obs_self"].flags.writeable
+    assert reward.__array_interface__["data"][0] == env._field_address("reward")
+    assert truncated.__array_interface__["data"][0] == env._field_address("done")
+    with pytest.raises(ValueError):
+        obs["obs_self"][0, 0, 0] = 1.0  # read-only: the batch's state is not the user's to change
+
+
+def test_views_outlive_the_env():
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=1)
+    obs, _ = env.reset()
+    expected = obs["lidar"].copy()
+    del env, _
+    gc.collect()
+    assert np.array_equal(obs["lidar"], expected)
+
+
+@pytest.mark.parametrize("scene, envs", [("quadrant", 2), ("full", 3)])
+def test_bit_identical_with_the_cpp_simulator(run_cli, tmp_path, scene, envs):
+    """hns play (the C++ BatchSim, random actions) against BatchEnv fed the recorded actions."""
+    path = tmp_path / "play.traj"
+    run_cli("play", "--scene", scene, "--random", "--episodes", envs, "--envs", envs, "--seed", 11, "--out", path)
+    episodes = sorted(hns.read_trajectory(str(path))["episodes"], key=lambda ep: ep["env"])
+    assert [ep["env"] for ep in episodes] == list(range(envs))
+    env = hns.BatchEnv(scene=scene, num_envs=envs, threads=1, seed=11)
+    env.reset()
+    horizon = episodes[0]["horizon"]
+    state = env.state()
+    actions = np.full((envs, env.max_agents, 5), [5, 5, 5, 0, 0], dtype=np.uint8)
+    padding_seen = False
+    for t in range(horizon + 1):
+        if t > 0:
+            for e, ep in enumerate(episodes):
+                actions[e, : ep["action"].shape[1]] = ep["action"][t]
+            _, reward, _, truncated, _ = env.step(actions)
+            assert bool(truncated.all()) == (t == horizon)
+        for e, ep in enumerate(episodes):
+            n, b = ep["action"].shape[1], ep["num_boxes"]
+            padding_seen |= n < env.max_agents
+            np.testing.assert_array_equal(reward[e, :n] if t > 0 else np.zeros(n, np.float32), ep["reward"][t])
+            if t == horizon:
+                continue  # the env was reset into its next episode in the step that ended this one
+            np.testing.assert_array_equal(state["agent_pos"][e, :n], ep["agent_pose"][t, :, :3], "t=%d" % t)
+            np.testing.assert_array_equal(state["box_pos"][e, :b], ep["box_pose"][t, :, :3], "t=%d" % t)
+            np.testing.assert_array_equal(state["vis_agents"][e, :n, :n], ep["vis_agents"][t], "t=%d" % t)
+    if scene == "full":
+        assert padding_seen, "no episode with padding agents: pick another seed"
+    assert np.array_equal(env.state()["episode"], np.ones(envs, np.int32))
+
+
+def run_random(threads, steps=260, envs=6, scene="full"):
+    env = hns.BatchEnv(scene=scene, num_envs=envs, threads=threads, seed=5)
+    env.reset()
+    rng = np.random.default_rng(9)
+    snapshots = []
+    for t in range(steps):
+        env.step(random_actions(rng, env))
+        if t % 65 == 64:
+            snapshots.append({k: v.tobytes() for k, v in env.state().items()})
+    return snapshots
+
+
+def test_deterministic_across_thread_counts():
+    one, two = run_random(1), run_random(2)
+    assert len(one) == 4
+    for a, b in zip(one, two):
+        for name in a:
+            assert a[name] == b[name], name
+
+
+def test_episode_statistics_and_truncation():
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=4)
+    env.reset()
+    rng = np.random.default_rng(1)
+    for t in range(1, env.horizon + 1):
+        obs, reward, terminated, truncated, info = env.step(random_actions(rng, env))
+        assert not terminated.any()
+        if t < env.horizon:
+            assert not truncated.any() and len(info["finished"]["env"]) == 0
+    assert truncated.all()
+    finished = info["finished"]
+    assert list(finished["env"]) == [0, 1] and list(finished["length"]) == [env.horizon] * 2
+    assert list(obs["step_count"]) == [0, 0] and list(obs["episode"]) == [1, 1]
+    assert np.all(finished["hider_return"] == -finished["seeker_return"])  # quadrant rewards are zero-sum
+
+
+def test_gil_released_while_stepping():
+    env = hns.BatchEnv(scene="full", num_envs=64, threads=1, seed=1)
+    env.reset()
+    actions = random_actions(np.random.default_rng(0), env)
+    counter = [0]
+    stop = threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            counter[0] += 1
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    try:
+        time.sleep(0.05)
+        before = counter[0]
+        for _ in range(5):
+            env.step(actions)
+        during = counter[0] - before
+    finally:
+        stop.set()
+        thread.join()
+    assert during > 1000, "the other thread barely ran while step() worked: the GIL was held"
+
+
+@pytest.mark.parametrize(
+    "kwargs, error, words",
+    [
+        (dict(scene="castle"), ValueError, "scene"),
+        (dict(num_envs=0), ValueError, "num_envs"),
+        (dict(threads=-1), ValueError, "threads"),
+        (dict(seed=-1), ValueError, "seed"),
+        (dict(seed=2**64), ValueError, "seed"),
+        (dict(hiders=40), ValueError, "hiders"),
+        (dict(horizon=0), ValueError, "horizon"),
+        (dict(num_envs="many"), TypeError, ""),
+    ],
+)
+def test_bad_constructor_arguments(kwargs, error, words):
+    with pytest.raises(error, match=words):
+        hns.BatchEnv(**kwargs)
+
+
+def test_bad_actions():
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=1)
+    env.reset()
+    good = np.full((2, env.max_agents, 5), 5, dtype=np.int64)
+    good[..., 3:] = 0
+    env.step(good)
+    env.step(good.astype(np.uint8))
+    env.step(good.tolist())
+    with pytest.raises(ValueError, match=r"actions: shape \(2, 4, 4\), expected \(2, 4, 5\)"):
+        env.step(good[..., :4])
+    with pytest.raises(ValueError, match="shape"):
+        env.step(good[:1])
+    with pytest.raises(TypeError, match="actions: dtype float64"):
+        env.step(good.astype(np.float64))
+    with pytest.raises(TypeError, match="actions"):
+        env.step("left")
+    bad = good.copy()
+    bad[1, 2, 0] = 11
+    with pytest.raises(ValueError, match=r"actions\[1, 2, 0\] = 11 is out of range: movement bins are 0..10"):
+        env.step(bad)
+    bad = good.copy()
+    bad[0, 3, 4] = 2
+    with pytest.raises(ValueError, match=r"actions\[0, 3, 4\] = 2 .*grab and lock are 0 or 1"):
+        env.step(bad)
+    bad = good.copy()
+    bad[0, 0, 1] = -1
+    with pytest.raises(ValueError, match="out of range"):
+        env.step(bad)
+    with pytest.raises(ValueError, match="episodes: shape"):
+        env.reset(episodes=np.zeros(3, np.int32))
+    with pytest.raises(ValueError, match=r"episodes\[1\] = -2"):
+        env.reset(episodes=np.array([0, -2]))
+    with pytest.raises(IndexError, match="env = 2"):
+        env.scene(2)
+    # The env still works after every refusal.
+    obs, info = env.reset(episodes=np.array([3, 4]))
+    assert list(obs["episode"]) == [3, 4]
+
+
+def test_reset_with_episodes_replays_those_scenes():
+    a = hns.BatchEnv(scene="full", num_envs=2, threads=1, seed=8)
+    a.reset(episodes=np.array([5, 6]))
+    b = hns.BatchEnv(scene="full", num_envs=2, threads=1, seed=8)
+    b.reset()
+    assert not np.array_equal(a.state()["agent_pos"], b.state()["agent_pos"])
+    b.reset(episodes=np.array([5, 6]))
+    for name, value in a.state().items():
+        assert value.tobytes() == b.state()[name].tobytes(), name

@@ -1,0 +1,85 @@
+"""hns.Policy: the actions of a checkpoint's policy equal `hns play --checkpoint`'s; bad input is refused."""
+import numpy as np
+import pytest
+
+import hns
+
+
+def test_policy_actions_equal_hns_play(run_cli, checkpoint, tmp_path):
+    envs, episodes, seed = 2, 4, 5  # two episodes per env: the LSTM state is carried and reset at episode starts
+    path = tmp_path / "play.traj"
+    run_cli("play", "--checkpoint", checkpoint, "--episodes", episodes, "--envs", envs, "--seed", seed, "--out", path)
+    recorded = {(ep["env"], ep["episode"]): ep for ep in hns.read_trajectory(str(path))["episodes"]}
+    assert sorted(recorded) == [(0, 0), (0, 1), (1, 0), (1, 1)]
+
+    policy = hns.Policy.load(str(checkpoint), seed=seed)
+    assert policy.scene == "quadrant" and policy.model == "small"
+    env = policy.make_env(num_envs=envs, threads=1, seed=seed)
+    obs, _ = env.reset()
+    state = policy.initial_state(envs)
+    assert state.shape == (2, envs, env.max_agents, policy.state_width) and not state.any()
+    horizon = env.horizon
+    compared = 0
+    for k in range(2):
+        for t in range(1, horizon + 1):
+            actions, state = policy.act(obs, state)
+            assert actions.dtype == np.uint8 and actions.shape == (envs, env.max_agents, 5)
+            for e in range(envs):
+                ep = recorded[(e, k)]
+                np.testing.assert_array_equal(actions[e, : ep["action"].shape[1]], ep["action"][t],
+                                              "env %d episode %d step %d" % (e, k, t))
+                compared += 1
+            obs, *_ = env.step(actions)
+    assert compared == 2 * envs * horizon
+
+
+def test_state_is_returned_not_changed_in_place(checkpoint):
+    policy = hns.Policy.load(str(checkpoint))
+    env = policy.make_env(num_envs=2, threads=1)
+    obs, _ = env.reset()
+    state = policy.initial_state(2)
+    actions, new_state = policy.act(obs, state)
+    assert not state.any() and new_state.any()
+    # The same inputs give the same outputs from a fresh policy with the same seed; copies work as views do.
+    again, again_state = hns.Policy.load(str(checkpoint)).act(env.observations(copy=True), state)
+    np.testing.assert_array_equal(again, actions)
+    np.testing.assert_array_equal(again_state, new_state)
+
+
+def test_bad_policy_input(checkpoint, tmp_path):
+    with pytest.raises(FileNotFoundError, match="no such file"):
+        hns.Policy.load(str(tmp_path / "missing.bin"))
+    junk = tmp_path / "junk.bin"
+    junk.write_bytes(b"not a checkpoint at all" * 10)
+    with pytest.raises(ValueError):
+        hns.Policy.load(str(junk))
+    with pytest.raises(ValueError, match="seed"):
+        hns.Policy.load(str(checkpoint), seed=-3)
+
+    policy = hns.Policy.load(str(checkpoint))
+    env = policy.make_env(num_envs=2, threads=1)
+    obs, _ = env.reset(copy=True)
+    state = policy.initial_state(2)
+    with pytest.raises(ValueError, match="num_envs"):
+        policy.initial_state(0)
+    with pytest.raises(ValueError, match=r"state: shape"):
+        policy.act(obs, state[:, :1])
+    with pytest.raises(TypeError, match=r"state: dtype float64"):
+        policy.act(obs, state.astype(np.float64))
+    missing = dict(obs)
+    del missing["mask_boxes"]
+    with pytest.raises(KeyError, match="mask_boxes"):
+        policy.act(missing, state)
+    wrong = dict(obs, obs_self=obs["obs_self"].astype(np.float64))
+    with pytest.raises(TypeError, match=r"obs\['obs_self'\]: dtype float64, expected float32"):
+        policy.act(wrong, state)
+    wrong = dict(obs, lidar=obs["lidar"][:, :, :10])
+    with pytest.raises(ValueError, match=r"obs\['lidar'\]: shape"):
+        policy.act(wrong, state)
+    other = hns.BatchEnv(scene="full", num_envs=2, threads=1)
+    with pytest.raises(ValueError, match="shape"):
+        policy.act(other.reset()[0], state)
+    # Boolean masks are accepted as they are (the same bytes).
+    as_bool = dict(obs, mask_boxes=obs["mask_boxes"].astype(bool))
+    np.testing.assert_array_equal(hns.Policy.load(str(checkpoint)).act(as_bool, state)[0],
+                                  hns.Policy.load(str(checkpoint)).act(obs, state)[0])

@@ -1,0 +1,50 @@
+"""hns.read_trajectory and hns.read_metrics: the files `hns play` and `hns train` write, and bad files."""
+import numpy as np
+import pytest
+
+import hns
+
+
+def test_read_trajectory(run_cli, tmp_path):
+    path = tmp_path / "full.traj"
+    run_cli("play", "--scene", "full", "--random", "--episodes", 2, "--envs", 2, "--seed", 3, "--out", path)
+    data = hns.read_trajectory(str(path))
+    assert data["version"] == 2 and data["created_by"] == "hns play" and data["policy"] == "random"
+    assert len(data["episodes"]) == 2
+    for ep in data["episodes"]:
+        F, A, B, R = ep["frames"], ep["num_hiders"] + ep["num_seekers"], ep["num_boxes"], ep["num_ramps"]
+        assert F == ep["horizon"] + 1 == 241 and ep["scene"] == "full"
+        assert ep["agent_pose"].shape == (F, A, 4) and ep["agent_pose"].dtype == np.float32
+        assert ep["box_pose"].shape == (F, B, 4) and ep["ramp_pose"].shape == (F, R, 4)
+        assert ep["object_lock"].shape == (F, B + R) and ep["agent_holding"].dtype == np.int8
+        assert ep["vis_boxes"].shape == (F, A, B) and ep["lidar"].shape == (F, A, 30)
+        assert ep["lidar"].dtype == np.float32 and 0 <= ep["lidar"].min() and ep["lidar"].max() <= 6.0
+        assert ep["action"].shape == (F, A, 5) and ep["reward"].shape == (F, A)
+        assert ep["prep"].shape == (F,) and ep["prep"][1] == 1 and ep["prep"][-1] == 0
+        assert ep["walls"].shape[1] == 6 and ep["box_sizes"].shape == (B, 3)
+        # Hiders' and seekers' summed mean rewards are the header's returns.
+        hiders = ep["reward"][:, : ep["num_hiders"]].mean(axis=1).sum(dtype=np.float64)
+        assert hiders == pytest.approx(ep["hider_return"], abs=1e-3)
+
+
+def test_read_trajectory_errors(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        hns.read_trajectory(str(tmp_path / "none.traj"))
+    bad = tmp_path / "bad.traj"
+    bad.write_bytes(b"HNSTRAJ\n\x05\x00\x00\x00{oops")
+    with pytest.raises(hns.TrajectoryError) as info:
+        hns.read_trajectory(str(bad))
+    assert isinstance(info.value, ValueError) and "bad.traj" in str(info.value)
+
+
+def test_read_metrics(checkpoint, tmp_path):
+    rows = hns.read_metrics(checkpoint.parent / "metrics.jsonl")
+    assert len(rows) == 1 and rows[0]["iteration"] == 1 and rows[0]["agent_steps"] > 0
+    assert list(hns.metrics_column(rows, "iteration")) == [1.0]
+    assert np.isnan(hns.metrics_column(rows, "no_such_metric")).all()
+    broken = tmp_path / "metrics.jsonl"
+    broken.write_text('{"iteration": 1, "agent_steps": 10}\n\n{"iteration": 2}\n')
+    with pytest.raises(ValueError, match=r"metrics.jsonl:3: is not an iteration record"):
+        hns.read_metrics(broken)
+    with pytest.raises(FileNotFoundError):
+        hns.read_metrics(tmp_path / "nothing.jsonl")
