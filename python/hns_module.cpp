@@ -205,8 +205,8 @@ class BatchEnv {
  public:
   BatchEnv(const std::string& scene, const phys::WorldConfig& world, int num_envs, int threads, uint64_t seed)
       : scene_(scene) {
-    if (num_envs < 1) {
-      raise(PyExc_ValueError, "num_envs = " + std::to_string(num_envs) + " is invalid: must be >= 1");
+    if (num_envs < 1 || num_envs > (1 << 22)) {
+      raise(PyExc_ValueError, "num_envs = " + std::to_string(num_envs) + " is invalid: must be in [1, 4194304]");
     }
     if (threads < 0) {
       raise(PyExc_ValueError,

@@ -186,6 +186,7 @@ def test_gil_released_while_stepping():
     [
         (dict(scene="castle"), ValueError, "scene"),
         (dict(num_envs=0), ValueError, "num_envs"),
+        (dict(num_envs=2**22 + 1), ValueError, "num_envs"),
         (dict(threads=-1), ValueError, "threads"),
         (dict(seed=-1), ValueError, "seed"),
         (dict(seed=2**64), ValueError, "seed"),

@@ -1,0 +1,35 @@
+"""The example scripts of examples/ run as the docs show them."""
+import os
+import subprocess
+import sys
+
+import pytest
+
+EXAMPLES = os.path.join(os.path.dirname(__file__), "..", "..", "examples")
+
+
+def run_example(name, *args):
+    result = subprocess.run([sys.executable, os.path.join(EXAMPLES, name), *map(str, args)],
+                            capture_output=True, text=True, env=dict(os.environ))
+    assert result.returncode == 0, result.stdout + result.stderr
+    return result.stdout
+
+
+def test_random_loop_prints_returns():
+    out = run_example("random_loop.py", "--envs", 2, "--steps", 170, "--threads", 1)
+    assert out.count("episode") >= 4 and "mean return hiders" in out and "env-steps/s" in out
+
+
+def test_random_loop_with_a_checkpoint(checkpoint):
+    out = run_example("random_loop.py", "--checkpoint", checkpoint, "--envs", 2, "--steps", 81, "--threads", 1)
+    assert "policy " in out and "mean return hiders" in out
+
+
+def test_plot_run(checkpoint, tmp_path):
+    out = run_example("plot_run.py", checkpoint.parent, "--out", tmp_path / "curves.png")
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        assert "matplotlib is not installed" in out and "hider_reward" in out
+    else:
+        assert (tmp_path / "curves.png").stat().st_size > 1000
