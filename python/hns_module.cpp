@@ -179,6 +179,15 @@ void check_shape(const py::array& a, const Shape& want, const std::string& what)
   if (!ok) raise(PyExc_ValueError, what + ": shape " + shape_text(a) + ", expected " + shape_text(want));
 }
 
+// `a` as a C-contiguous array of T (converted where Flags include forcecast). A conversion numpy cannot make
+// (no memory for the copy) is a MemoryError naming `what`, never a null array.
+template <class T, int Flags = py::array::c_style>
+py::array_t<T, Flags> contiguous(const py::array& a, const std::string& what) {
+  auto c = py::array_t<T, Flags>::ensure(a);
+  if (!c) raise(PyExc_MemoryError, what + ": no memory for a contiguous copy of shape " + shape_text(a));
+  return c;
+}
+
 // A C-contiguous array of exactly T (no conversion: a wrong dtype is a TypeError naming `what`).
 template <class T>
 py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& what,
@@ -186,10 +195,27 @@ py::array_t<T, py::array::c_style> exact(const py::array& a, const std::string& 
   if (!a.dtype().is(py::dtype::of<T>())) {
     raise(PyExc_TypeError, what + ": dtype " + std::string(py::str(a.dtype())) + ", expected " + dtype_name);
   }
-  return py::array_t<T, py::array::c_style>::ensure(a);
+  return contiguous<T>(a, what);
 }
 
-uint64_t seed_from(const py::int_& seed) {
+// A file path from a str or an os.PathLike (TypeError otherwise; ValueError for an embedded NUL byte).
+std::string path_from(const py::object& value, const char* what) {
+  const py::object p = py::module_::import("os").attr("fspath")(value);
+  if (!py::isinstance<py::str>(p))
+    raise(PyExc_TypeError, std::string(what) + ": expected a str or os.PathLike");
+  std::string path = p.cast<std::string>();
+  if (path.find('\0') != std::string::npos)
+    raise(PyExc_ValueError, std::string(what) + ": the path holds a NUL byte");
+  return path;
+}
+
+// A seed from any integer (Python or numpy; not bool) in [0, 2^64 - 1].
+uint64_t seed_from(const py::object& value) {
+  if (PyBool_Check(value.ptr()) || PyIndex_Check(value.ptr()) == 0) {
+    raise(PyExc_TypeError, "seed: expected an integer, got " + std::string(py::str(value.get_type())));
+  }
+  const auto seed = py::reinterpret_steal<py::int_>(PyNumber_Index(value.ptr()));
+  if (!seed) throw py::error_already_set();
   const py::int_ lo(0), hi(std::numeric_limits<uint64_t>::max());
   if (seed < lo || seed > hi) {
     raise(PyExc_ValueError,
@@ -202,11 +228,18 @@ uint64_t seed_from(const py::int_& seed) {
 // BatchEnv
 
 class BatchEnv {
+  // What the arrays handed to Python keep alive: the batch, and the all-zero `terminated` flags.
+  struct Keeper {
+    std::shared_ptr<batch::BatchSim> sim;
+    std::vector<uint8_t> zeros;
+  };
+
  public:
   BatchEnv(const std::string& scene, const phys::WorldConfig& world, int num_envs, int threads, uint64_t seed)
       : scene_(scene) {
     if (num_envs < 1 || num_envs > (1 << 22)) {
-      raise(PyExc_ValueError, "num_envs = " + std::to_string(num_envs) + " is invalid: must be in [1, 4194304]");
+      raise(PyExc_ValueError,
+            "num_envs = " + std::to_string(num_envs) + " is invalid: must be in [1, 4194304]");
     }
     if (threads < 0) {
       raise(PyExc_ValueError,
@@ -225,8 +258,8 @@ class BatchEnv {
 
     // Every field viewed once: the buffers never move while the sim lives, and the arrays keep it alive
     // through a capsule (not through this object, so no reference cycle).
-    auto* keep = new std::shared_ptr<batch::BatchSim>(sim_);
-    owner_ = py::capsule(keep, [](void* p) { delete static_cast<std::shared_ptr<batch::BatchSim>*>(p); });
+    auto* keep = new Keeper{sim_, std::vector<uint8_t>(size_t(num_envs), 0)};
+    owner_ = py::capsule(keep, [](void* p) { delete static_cast<Keeper*>(p); });
     const batch::BatchState& s = sim_->state();
     const py::ssize_t E = num_envs;
     using batch::Layout;  // the field sizes below name it
@@ -241,10 +274,7 @@ class BatchEnv {
 #undef HNS_VIEW_FIELD
     for (const char* name : kObsFields) obs_[name] = fields_[name];
     truncated_ = make_view(s.done.data(), Shape{E}, owner_, /*as_bool=*/true);
-    py::array_t<bool> never(E);
-    std::memset(never.mutable_data(), 0, size_t(E));
-    never.attr("flags").attr("writeable") = false;
-    terminated_view_ = never;
+    terminated_view_ = make_view(keep->zeros.data(), Shape{E}, owner_, /*as_bool=*/true);
   }
 
   py::tuple reset(const std::optional<py::handle>& episodes, bool copy) {
@@ -256,15 +286,21 @@ class BatchEnv {
               "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
       }
       check_shape(a, Shape{py::ssize_t(num_envs())}, "episodes");
-      auto v = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(a);
+      // At most 2^30 - 1: the env's int32 episode counter keeps 2^30 episodes of headroom.
       std::vector<int32_t> eps(static_cast<size_t>(num_envs()));
-      for (int e = 0; e < num_envs(); ++e) {
-        const int64_t x = v.at(e);
-        if (x < 0 || x > std::numeric_limits<int32_t>::max()) {
-          raise(PyExc_ValueError, "episodes[" + std::to_string(e) + "] = " + std::to_string(x) +
-                                      " is invalid: must be in [0, 2^31 - 1]");
+      auto check_copy = [&](const auto* v) {
+        for (int e = 0; e < num_envs(); ++e) {
+          if (static_cast<uint64_t>(v[e]) > uint64_t((1 << 30) - 1)) {  // negative values wrap
+            raise(PyExc_ValueError, "episodes[" + std::to_string(e) + "] = " + std::to_string(+v[e]) +
+                                        " is invalid: must be in [0, 2^30 - 1]");
+          }
+          eps[size_t(e)] = int32_t(v[e]);
         }
-        eps[size_t(e)] = int32_t(x);
+      };
+      if (a.dtype().kind() == 'u') {
+        check_copy(contiguous<uint64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
+      } else {
+        check_copy(contiguous<int64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
       }
       py::gil_scoped_release release;
       sim_->reset(eps);
@@ -292,19 +328,19 @@ class BatchEnv {
   }
 
   py::dict observations(bool copy) const {
-    return copy ? copy_dict(obs_) : py::dict(obs_);
+    return copy ? copy_dict(obs_) : py::dict(obs_.attr("copy")());
   }
   py::dict state(bool copy) const {
-    return copy ? copy_dict(fields_) : py::dict(fields_);
+    return copy ? copy_dict(fields_) : py::dict(fields_.attr("copy")());
   }
   py::dict field_docs() const {
-    return py::dict(docs_);
+    return py::dict(docs_.attr("copy")());
   }
 
   // Per-env bookkeeping and the episodes that ended in the last step.
   py::dict info(bool copy) const {
     py::dict d;
-    for (const char* name : {"episode", "step_count", "episode_return", "agent_exists", "agent_hider"}) {
+    for (const char* name : {"episode_return", "agent_exists", "agent_hider"}) {
       d[name] = copy ? py::object(fields_[name].attr("copy")()) : py::object(fields_[name]);
     }
     const auto finished = sim_->finished();
@@ -340,7 +376,8 @@ class BatchEnv {
   }
 
   // The scene env `env` is playing (copies): walls, doors, counts and spawns.
-  py::dict scene(int env) const {
+  py::dict scene(int env) {
+    BusyGuard busy(busy_, "BatchEnv.scene");  // a step may be replacing the scene meanwhile
     if (env < 0 || env >= num_envs()) {
       raise(PyExc_IndexError, "env = " + std::to_string(env) + " is out of range: the batch has " +
                                   std::to_string(num_envs()) + " envs");
@@ -413,11 +450,10 @@ class BatchEnv {
       for (size_t i = 0; i < actions_.size(); ++i) {
         const auto* x = p + i * 5;
         for (int k = 0; k < 5; ++k) {
-          const long long v = static_cast<long long>(x[k]);
           const int hi = k < 3 ? phys::kMoveBins - 1 : 1;
-          if (v < 0 || v > hi) {
+          if (static_cast<uint64_t>(x[k]) > uint64_t(hi)) {  // a negative value wraps to a huge one
             raise(PyExc_ValueError, "actions[" + std::to_string(i / A) + ", " + std::to_string(i % A) + ", " +
-                                        std::to_string(k) + "] = " + std::to_string(v) +
+                                        std::to_string(k) + "] = " + std::to_string(+x[k]) +
                                         " is out of range: " +
                                         (k < 3 ? "movement bins are 0..10" : "grab and lock are 0 or 1"));
           }
@@ -426,9 +462,11 @@ class BatchEnv {
       }
     };
     if (a.dtype().is(py::dtype::of<uint8_t>())) {
-      check_copy(py::array_t<uint8_t, py::array::c_style>::ensure(a).data());
+      check_copy(contiguous<uint8_t>(a, "actions").data());
+    } else if (a.dtype().kind() == 'u') {
+      check_copy(contiguous<uint64_t, py::array::c_style | py::array::forcecast>(a, "actions").data());
     } else {
-      check_copy(py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(a).data());
+      check_copy(contiguous<int64_t, py::array::c_style | py::array::forcecast>(a, "actions").data());
     }
   }
 
@@ -438,14 +476,14 @@ class BatchEnv {
   py::capsule owner_;
   py::dict fields_, docs_, obs_;
   py::array truncated_;        // bool view of the batch's done flags: the horizon ends a game (a time limit)
-  py::array terminated_view_;  // always false: no game ends otherwise
+  py::array terminated_view_;  // always false (Keeper::zeros): no game ends otherwise
   std::atomic<bool> busy_{false};
 };
 
-std::unique_ptr<BatchEnv> make_env(const std::string& scene, int num_envs, int threads, const py::int_& seed,
-                                   std::optional<int> hiders, std::optional<int> seekers,
-                                   std::optional<int> boxes, std::optional<int> ramps,
-                                   std::optional<int> horizon) {
+std::unique_ptr<BatchEnv> make_env(const std::string& scene, int num_envs, int threads,
+                                   const py::object& seed, std::optional<int> hiders,
+                                   std::optional<int> seekers, std::optional<int> boxes,
+                                   std::optional<int> ramps, std::optional<int> horizon) {
   phys::WorldConfig world = phys::world_preset(scene);
   phys::apply_overrides(world, phys::CountOverrides{hiders, seekers, boxes, ramps});
   if (horizon) {
@@ -484,6 +522,10 @@ class Policy {
     py::array self = get("obs_self");
     if (self.ndim() < 1) raise(PyExc_ValueError, "obs['obs_self']: expected (num_envs, max_agents, 11)");
     const py::ssize_t E = self.shape(0);
+    if (E < 1 || E > (1 << 22)) {
+      raise(PyExc_ValueError,
+            "obs['obs_self']: " + std::to_string(E) + " envs; a policy acts for 1 to 4194304");
+    }
     std::vector<py::object> keep;  // the contiguous arrays read below
     auto floats = [&](const char* key, Shape per_row) {
       py::array a = get(key);
@@ -550,7 +592,7 @@ class Policy {
     return s;
   }
 
-  std::unique_ptr<BatchEnv> make_env(int num_envs, int threads, const py::int_& seed) const {
+  std::unique_ptr<BatchEnv> make_env(int num_envs, int threads, const py::object& seed) const {
     return std::make_unique<BatchEnv>(policy_->config().scene, policy_->config().world(), num_envs, threads,
                                       seed_from(seed));
   }
@@ -627,7 +669,8 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   return d;
 }
 
-py::dict read_trajectory(const std::string& path) {
+py::dict read_trajectory(const py::object& path_arg) {
+  const std::string path = path_from(path_arg, "path");
   if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
   replay::TrajectoryFile file;
   {
@@ -645,7 +688,8 @@ py::dict read_trajectory(const std::string& path) {
   return d;
 }
 
-std::string read_metrics_json(const std::string& path) {
+std::string read_metrics_json(const py::object& path_arg) {
+  const std::string path = path_from(path_arg, "path");
   if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
   std::string text;
   try {
@@ -720,8 +764,8 @@ and state a float32 array (2, num_envs, max_agents, state_width): the policy's a
 states (initial_state(num_envs) gives zeros; an env at step_count 0 has its states zeroed first).)doc")
       .def_static(
           "load",
-          [](const std::string& path, const py::int_& seed) {
-            return std::make_unique<Policy>(path, seed_from(seed));
+          [](const py::object& path, const py::object& seed) {
+            return std::make_unique<Policy>(path_from(path, "path"), seed_from(seed));
           },
           py::arg("path"), py::arg("seed") = py::int_(1))
       .def("act", &Policy::act, py::arg("obs"), py::arg("state"))

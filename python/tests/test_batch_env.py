@@ -1,5 +1,6 @@
 """hns.BatchEnv: shapes and dtypes, zero-copy views, agreement with the C++ simulator, determinism, errors."""
 import gc
+import sys
 import threading
 import time
 
@@ -81,10 +82,35 @@ def test_views_are_the_batch_buffers_without_copies():
 def test_views_outlive_the_env():
     env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=1)
     obs, _ = env.reset()
-    expected = obs["lidar"].copy()
+    expected = {name: view.copy() for name, view in obs.items()}
     del env, _
     gc.collect()
-    assert np.array_equal(obs["lidar"], expected)
+    # Other batches of the same size now take the memory a freed batch would have returned.
+    others = [hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=s) for s in range(2, 6)]
+    for other in others:
+        other.step(np.full((2, 4, 5), [0, 10, 3, 1, 1], dtype=np.uint8))
+    for name, view in obs.items():
+        assert np.array_equal(view, expected[name]), name
+
+
+def test_returned_dicts_and_arrays_are_the_callers():
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=1)
+    obs, info = env.reset()
+    obs["lidar"] = obs["lidar"] / 6.0  # a user's in-place edits of the dicts change nothing of the env's
+    del obs["step_count"]
+    state = env.state()
+    state["reward"] = "not an array"
+    neutral = np.full((2, 4, 5), [5, 5, 5, 0, 0], dtype=np.uint8)
+    obs2, reward, terminated, truncated, _ = env.step(neutral)
+    assert obs2 is not obs and "step_count" in obs2 and obs2["lidar"].base is not None
+    assert reward.dtype == np.float32 and env.state()["reward"].dtype == np.float32
+    for flag in (terminated, truncated):
+        with pytest.raises(ValueError):
+            flag.flags.writeable = True  # views of the batch (or of its constant zeros) stay read-only
+    owned = env.step(neutral, copy=True)
+    assert all(a.flags.writeable for a in owned[0].values())
+    assert owned[1].flags.writeable and owned[2].flags.writeable and owned[3].flags.writeable
+    assert not np.shares_memory(owned[1], env.state()["reward"])
 
 
 @pytest.mark.parametrize("scene, envs", [("quadrant", 2), ("full", 3)])
@@ -133,6 +159,8 @@ def run_random(threads, steps=260, envs=6, scene="full"):
 
 
 def test_deterministic_across_thread_counts():
+    if hns.BatchEnv(num_envs=1, threads=2).threads < 2:
+        pytest.skip("this machine has one hardware thread")
     one, two = run_random(1), run_random(2)
     assert len(one) == 4
     for a, b in zip(one, two):
@@ -157,7 +185,7 @@ def test_episode_statistics_and_truncation():
 
 
 def test_gil_released_while_stepping():
-    env = hns.BatchEnv(scene="full", num_envs=64, threads=1, seed=1)
+    env = hns.BatchEnv(scene="full", num_envs=128, threads=1, seed=1)
     env.reset()
     actions = random_actions(np.random.default_rng(0), env)
     counter = [0]
@@ -167,17 +195,21 @@ def test_gil_released_while_stepping():
         while not stop.is_set():
             counter[0] += 1
 
+    interval = sys.getswitchinterval()
+    # Python takes the GIL from a running thread only every 0.2 s, and never inside a C call that keeps it:
+    # the spinner counts during step() only if step() lets go of the GIL (a call that keeps it scores 0).
+    sys.setswitchinterval(0.2)
     thread = threading.Thread(target=spin)
     thread.start()
     try:
         time.sleep(0.05)
         before = counter[0]
-        for _ in range(5):
-            env.step(actions)
+        env.step(actions)
         during = counter[0] - before
     finally:
         stop.set()
         thread.join()
+        sys.setswitchinterval(interval)
     assert during > 1000, "the other thread barely ran while step() worked: the GIL was held"
 
 
@@ -193,6 +225,8 @@ def test_gil_released_while_stepping():
         (dict(hiders=40), ValueError, "hiders"),
         (dict(horizon=0), ValueError, "horizon"),
         (dict(num_envs="many"), TypeError, ""),
+        (dict(seed=1.5), TypeError, "seed"),
+        (dict(seed=True), TypeError, "seed"),
     ],
 )
 def test_bad_constructor_arguments(kwargs, error, words):
@@ -226,12 +260,18 @@ def test_bad_actions():
         env.step(bad)
     bad = good.copy()
     bad[0, 0, 1] = -1
-    with pytest.raises(ValueError, match="out of range"):
+    with pytest.raises(ValueError, match=r"actions\[0, 0, 1\] = -1 is out of range"):
         env.step(bad)
+    big = good.astype(np.uint64)
+    big[1, 1, 1] = 2**63 + 5
+    with pytest.raises(ValueError, match=r"actions\[1, 1, 1\] = 9223372036854775813 is out of range"):
+        env.step(big)
     with pytest.raises(ValueError, match="episodes: shape"):
         env.reset(episodes=np.zeros(3, np.int32))
     with pytest.raises(ValueError, match=r"episodes\[1\] = -2"):
         env.reset(episodes=np.array([0, -2]))
+    with pytest.raises(ValueError, match=r"episodes\[0\] = 1073741824 is invalid: must be in \[0, 2\^30 - 1\]"):
+        env.reset(episodes=np.array([2**30, 0]))
     with pytest.raises(IndexError, match="env = 2"):
         env.scene(2)
     # The env still works after every refusal.
@@ -240,6 +280,7 @@ def test_bad_actions():
 
 
 def test_reset_with_episodes_replays_those_scenes():
+    assert hns.BatchEnv(num_envs=1, seed=np.uint64(2**64 - 1)).seed == 2**64 - 1  # numpy integers are integers
     a = hns.BatchEnv(scene="full", num_envs=2, threads=1, seed=8)
     a.reset(episodes=np.array([5, 6]))
     b = hns.BatchEnv(scene="full", num_envs=2, threads=1, seed=8)

@@ -46,6 +46,24 @@ def test_state_is_returned_not_changed_in_place(checkpoint):
     np.testing.assert_array_equal(again_state, new_state)
 
 
+def test_one_policy_for_two_batch_sizes_keeps_its_streams(checkpoint):
+    """Acting for batches of 4 and 2 envs in turn continues env e's stream; it never restarts it."""
+    alone = hns.Policy.load(checkpoint, seed=2)  # a pathlib.Path works as well as a str
+    shared = hns.Policy.load(str(checkpoint), seed=2)
+    big, small = alone.make_env(num_envs=4, threads=1), alone.make_env(num_envs=2, threads=1)
+    obs_big, _ = big.reset()
+    obs_small, _ = small.reset()
+    state_big, state_small = alone.initial_state(4), alone.initial_state(2)
+    draws = []
+    for _ in range(6):
+        draws.append(shared.act(obs_big, state_big)[0])
+        shared.act(obs_small, state_small)
+    # The same observations each time: with the streams running on, the sampled actions vary.
+    assert sum(np.array_equal(draws[0], d) for d in draws[1:]) < 5
+    # Without the second batch the first batch's actions are the same sequence as with a Policy of its own.
+    np.testing.assert_array_equal(alone.act(obs_big, state_big)[0], hns.Policy.load(str(checkpoint), seed=2).act(obs_big, state_big)[0])
+
+
 def test_bad_policy_input(checkpoint, tmp_path):
     with pytest.raises(FileNotFoundError, match="no such file"):
         hns.Policy.load(str(tmp_path / "missing.bin"))

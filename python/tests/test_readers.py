@@ -8,7 +8,7 @@ import hns
 def test_read_trajectory(run_cli, tmp_path):
     path = tmp_path / "full.traj"
     run_cli("play", "--scene", "full", "--random", "--episodes", 2, "--envs", 2, "--seed", 3, "--out", path)
-    data = hns.read_trajectory(str(path))
+    data = hns.read_trajectory(path)  # str or os.PathLike
     assert data["version"] == 2 and data["created_by"] == "hns play" and data["policy"] == "random"
     assert len(data["episodes"]) == 2
     for ep in data["episodes"]:
@@ -30,6 +30,10 @@ def test_read_trajectory(run_cli, tmp_path):
 def test_read_trajectory_errors(tmp_path):
     with pytest.raises(FileNotFoundError):
         hns.read_trajectory(str(tmp_path / "none.traj"))
+    with pytest.raises(ValueError, match="NUL"):
+        hns.read_trajectory("play.traj\0junk")
+    with pytest.raises(TypeError):
+        hns.read_trajectory(42)
     bad = tmp_path / "bad.traj"
     bad.write_bytes(b"HNSTRAJ\n\x05\x00\x00\x00{oops")
     with pytest.raises(hns.TrajectoryError) as info:

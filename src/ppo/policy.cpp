@@ -43,8 +43,11 @@ void Policy::resize(int envs) {
   state_v_.resize(size_t(G) * sw);
   uniforms_.resize(size_t(G) * heads);
   actions_.assign(size_t(G) * heads, 0);
-  streams_.assign(size_t(envs), physics::Rng());
-  stream_episode_.assign(size_t(envs), -1);
+  // The sampling streams stay: env e's stream is (seed, e, episode) whatever batch size asks next.
+  if (streams_.size() < size_t(envs)) {
+    streams_.resize(size_t(envs));
+    stream_episode_.resize(size_t(envs), -1);
+  }
 }
 
 void Policy::act(const batch::BatchSim& sim, std::span<physics::AgentAction> actions) {

@@ -36,7 +36,9 @@ class Policy {
   // The same for `envs` envs of observations held anywhere (obs_shape()'s layout), with the caller's LSTM
   // states: policy_state and value_state [envs x max_agents, state_width()] are read and replaced (zeroed
   // first for the envs whose step_count is 0). Draws the same uniforms as act(sim), so a caller that steps
-  // its own batch with these actions plays the same episodes as `hns play --checkpoint`.
+  // its own batch with these actions plays the same episodes as `hns play --checkpoint`. The sampling stream
+  // of env e is kept per env index (and restarted at each new episode number): two batches acted for by one
+  // Policy share the streams of their common env indices.
   void act(const StepObsView& obs, int envs, float* policy_state, float* value_state,
            std::span<physics::AgentAction> actions);
 
