@@ -22,6 +22,7 @@
 #include "ppo/obs_arrays.hpp"
 #include "ppo/policy.hpp"
 #include "replay/metrics.hpp"
+#include "replay/play.hpp"
 #include "replay/trajectory.hpp"
 
 namespace py = pybind11;
@@ -704,6 +705,63 @@ std::string read_metrics_json(const py::object& path_arg) {
   }
 }
 
+// Records whole episodes into a trajectory file, as `hns play` does (the same bytes for the same arguments,
+// but for the file's created_by).
+py::dict record(const py::object& path_arg, const std::string& scene, const py::object& checkpoint_arg,
+                int episodes, int envs, int threads, const py::object& seed_arg, std::optional<int> hiders,
+                std::optional<int> seekers, std::optional<int> boxes, std::optional<int> ramps) {
+  const std::string path = path_from(path_arg, "path");
+  const std::filesystem::path folder = std::filesystem::path(path).parent_path();
+  if (!folder.empty() && !std::filesystem::is_directory(folder)) {
+    raise(PyExc_FileNotFoundError, "path: " + path + ": its folder does not exist");
+  }
+  if (std::filesystem::is_directory(path)) raise(PyExc_IsADirectoryError, "path: " + path + " is a folder");
+  const uint64_t seed = seed_from(seed_arg);
+  if (episodes < 1 || episodes > 100000) {
+    raise(PyExc_ValueError, "episodes = " + std::to_string(episodes) + " is invalid: must be in [1, 100000]");
+  }
+  if (envs < 1 || envs > 4096) {
+    raise(PyExc_ValueError, "envs = " + std::to_string(envs) + " is invalid: must be in [1, 4096]");
+  }
+  if (threads < 0) {
+    raise(PyExc_ValueError,
+          "threads = " + std::to_string(threads) + " is invalid: must be >= 0 (0 = every hardware thread)");
+  }
+  std::unique_ptr<ppo::Policy> policy;
+  std::string checkpoint;
+  if (!checkpoint_arg.is_none()) {
+    checkpoint = path_from(checkpoint_arg, "checkpoint");
+    if (!std::filesystem::exists(checkpoint)) raise(PyExc_FileNotFoundError, checkpoint + ": no such file");
+    try {
+      policy = ppo::Policy::from_checkpoint(checkpoint, seed);
+    } catch (const std::runtime_error& e) {
+      raise(PyExc_ValueError, std::string("checkpoint: ") + e.what());
+    }
+  }
+  const replay::RecordConfig config =
+      replay::play_config(scene, policy.get(), phys::CountOverrides{hiders, seekers, boxes, ramps}, episodes,
+                          envs, batch::usable_threads(threads), seed);
+  batch::check_memory("envs = " + std::to_string(envs), config.game.estimated_bytes());
+  replay::TrajectoryFile meta;
+  meta.created_by = "hns.record";
+  meta.policy = policy ? checkpoint : "random";
+  replay::RecordSummary summary;
+  uint64_t bytes = 0;
+  {
+    py::gil_scoped_release release;
+    replay::TrajectoryWriter writer(path, meta, episodes);
+    summary = replay::record_episodes(config, replay::play_actions(policy.get(), seed),
+                                      [&](const replay::TrajectoryEpisode& ep) { writer.add(ep); });
+    bytes = writer.finish();
+  }
+  py::dict d;
+  d["scene"] = config.scene;
+  d["recorded"] = summary.recorded;
+  d["discarded"] = summary.discarded;
+  d["bytes"] = bytes;
+  return d;
+}
+
 }  // namespace
 }  // namespace hns::python
 
@@ -782,4 +840,10 @@ states (initial_state(num_envs) gives zeros; an env at step_count 0 has its stat
   m.def("read_trajectory", &read_trajectory, py::arg("path"),
         "A trajectory file (hns play, hns train's replay.traj) as a dict of headers and numpy blocks.");
   m.def("_read_metrics_json", &read_metrics_json, py::arg("path"));
+  m.def("record", &record, py::arg("path"), py::arg("scene") = "", py::arg("checkpoint") = py::none(),
+        py::arg("episodes") = 1, py::arg("envs") = 1, py::arg("threads") = 1, py::arg("seed") = py::int_(1),
+        py::arg("hiders") = py::none(), py::arg("seekers") = py::none(), py::arg("boxes") = py::none(),
+        py::arg("ramps") = py::none(),
+        "Records whole episodes (random actions, or a checkpoint's policy) into a trajectory file, as `hns "
+        "play` does; returns what was recorded. The GIL is released while it plays.");
 }

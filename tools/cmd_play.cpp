@@ -14,6 +14,7 @@
 #include "cli.hpp"
 #include "physics/presets.hpp"
 #include "ppo/policy.hpp"
+#include "replay/play.hpp"
 #include "replay/recorder.hpp"
 #include "replay/trajectory.hpp"
 
@@ -39,9 +40,7 @@ struct PlayOptions {
 
 int run_play(const PlayOptions& opt) {
   std::unique_ptr<ppo::Policy> policy;
-  std::string scene = opt.scene.empty() ? "quadrant" : opt.scene;
   check_output_path("--out", opt.out, {opt.checkpoint});
-  phys::WorldConfig world = phys::world_preset(scene);
   if (!opt.checkpoint.empty()) {
     try {
       policy = ppo::Policy::from_checkpoint(opt.checkpoint, opt.seed);
@@ -49,25 +48,20 @@ int run_play(const PlayOptions& opt) {
       std::fprintf(stderr, "hns play: --checkpoint: %s\n", e.what());
       return 2;
     }
-    if (!opt.scene.empty() && opt.scene != policy->config().scene) {
-      throw phys::ConfigError("--scene " + opt.scene + ": the checkpoint was trained on scene '" +
-                              policy->config().scene + "' (leave --scene out to use it)");
-    }
-    scene = policy->config().scene;
-    world = policy->config().world();
   }
   RecordConfig config;
-  config.scene = scene;
-  config.episodes = opt.episodes;
-  config.game.world = world;
-  phys::apply_overrides(config.game.world,
-                        phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
-  // More envs than episodes would only play episodes nobody records.
-  config.game.num_envs = std::min(opt.envs, opt.episodes);
-  config.game.threads = usable_threads(opt.threads);
-  config.game.seed = opt.seed;
+  try {
+    config = play_config(opt.scene, policy.get(),
+                         phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps}, opt.episodes,
+                         opt.envs, usable_threads(opt.threads), opt.seed);
+  } catch (const phys::ConfigError& e) {
+    // The command line's names for the scene.
+    std::string what = e.what();
+    if (what.rfind("scene = ", 0) == 0) what = "--scene " + what.substr(8);
+    throw phys::ConfigError(what);
+  }
   check_memory("--envs " + std::to_string(opt.envs), config.game.estimated_bytes());
-  config.game.validate();
+  const std::string& scene = config.scene;
 
   std::printf("hns play: scene %s, %d episode%s of %d steps on %d env%s, %s, seed %llu\n", scene.c_str(),
               opt.episodes, opt.episodes == 1 ? "" : "s", config.game.world.horizon, config.game.num_envs,
@@ -79,20 +73,17 @@ int run_play(const PlayOptions& opt) {
   meta.created_by = "hns play";
   meta.policy = policy ? opt.checkpoint : "random";
   TrajectoryWriter writer(opt.out, meta, opt.episodes);
-  RandomActions random(opt.seed);
-  ActionFn actions = random;
-  if (policy)
-    actions = [&](const batch::BatchSim& sim, std::span<phys::AgentAction> a) { policy->act(sim, a); };
-  const RecordSummary summary = record_episodes(config, actions, [&](const TrajectoryEpisode& ep) {
-    writer.add(ep);
-    std::printf(
-        "  env %d episode %d: %d hider%s v %d seeker%s, %d boxes (%d elongated), %d ramp%s, %d frames, "
-        "returns hiders %+.1f seekers %+.1f\n",
-        ep.env, ep.episode, ep.num_hiders, ep.num_hiders == 1 ? "" : "s", ep.num_seekers,
-        ep.num_seekers == 1 ? "" : "s", ep.num_boxes, ep.num_elongated, ep.num_ramps,
-        ep.num_ramps == 1 ? "" : "s", ep.frames, ep.hider_return, ep.seeker_return);
-    std::fflush(stdout);
-  });
+  const RecordSummary summary =
+      record_episodes(config, play_actions(policy.get(), opt.seed), [&](const TrajectoryEpisode& ep) {
+        writer.add(ep);
+        std::printf(
+            "  env %d episode %d: %d hider%s v %d seeker%s, %d boxes (%d elongated), %d ramp%s, %d frames, "
+            "returns hiders %+.1f seekers %+.1f\n",
+            ep.env, ep.episode, ep.num_hiders, ep.num_hiders == 1 ? "" : "s", ep.num_seekers,
+            ep.num_seekers == 1 ? "" : "s", ep.num_boxes, ep.num_elongated, ep.num_ramps,
+            ep.num_ramps == 1 ? "" : "s", ep.frames, ep.hider_return, ep.seeker_return);
+        std::fflush(stdout);
+      });
   const uint64_t bytes = writer.finish();
   if (summary.discarded > 0) {
     std::printf("  warning: %d episode(s) were cut short by numerical trouble and not recorded\n",

@@ -5,6 +5,9 @@
     obs, info = env.reset()
     obs, reward, terminated, truncated, info = env.step(actions)   # actions: (num_envs, max_agents, 5)
 
+Also: Policy.load(checkpoint) to act with a trained policy, record() to write episodes as `hns play` does,
+read_trajectory() and read_metrics() for recordings and training runs.
+
 The manual is docs/python.md of the hns repository.
 """
 import json as _json
@@ -50,6 +53,7 @@ from ._hns import (  # noqa: F401
     __version__,
     isa,
     read_trajectory,
+    record,
     scenes,
 )
 from ._hns import _read_metrics_json

@@ -52,3 +52,54 @@ def test_read_metrics(checkpoint, tmp_path):
         hns.read_metrics(broken)
     with pytest.raises(FileNotFoundError):
         hns.read_metrics(tmp_path / "nothing.jsonl")
+
+
+def episodes_of(path):
+    return sorted(hns.read_trajectory(path)["episodes"], key=lambda ep: (ep["env"], ep["episode"]))
+
+
+def assert_same_episodes(a, b):
+    assert len(a) == len(b)
+    for x, y in zip(a, b):
+        assert x.keys() == y.keys()
+        for key in x:
+            if isinstance(x[key], np.ndarray):
+                np.testing.assert_array_equal(x[key], y[key], key)
+            else:
+                assert x[key] == y[key], key
+
+
+@pytest.mark.parametrize("scene", ["quadrant", "full"])
+def test_record_equals_hns_play(run_cli, tmp_path, scene):
+    run_cli("play", "--scene", scene, "--random", "--episodes", 3, "--envs", 2, "--seed", 4, "--out", tmp_path / "cli.traj")
+    done = hns.record(tmp_path / "py.traj", scene=scene, episodes=3, envs=2, seed=4)
+    assert done["recorded"] == 3 and done["scene"] == scene and done["bytes"] > 0
+    data = hns.read_trajectory(tmp_path / "py.traj")
+    assert data["created_by"] == "hns.record" and data["policy"] == "random"
+    assert_same_episodes(episodes_of(tmp_path / "py.traj"), episodes_of(tmp_path / "cli.traj"))
+
+
+def test_record_with_a_checkpoint_equals_hns_play(run_cli, checkpoint, tmp_path):
+    run_cli("play", "--checkpoint", checkpoint, "--episodes", 2, "--envs", 2, "--seed", 6, "--out", tmp_path / "cli.traj")
+    done = hns.record(tmp_path / "py.traj", checkpoint=checkpoint, episodes=2, envs=2, seed=6)
+    assert done["scene"] == "quadrant"
+    assert hns.read_trajectory(tmp_path / "py.traj")["policy"] == str(checkpoint)
+    assert_same_episodes(episodes_of(tmp_path / "py.traj"), episodes_of(tmp_path / "cli.traj"))
+
+
+def test_record_refusals(checkpoint, tmp_path):
+    with pytest.raises(ValueError, match="scene"):
+        hns.record(tmp_path / "x.traj", scene="castle")
+    with pytest.raises(ValueError, match="trained on scene 'quadrant'"):
+        hns.record(tmp_path / "x.traj", scene="full", checkpoint=checkpoint)
+    with pytest.raises(FileNotFoundError):
+        hns.record(tmp_path / "x.traj", checkpoint=tmp_path / "none.bin")
+    with pytest.raises(FileNotFoundError, match="folder does not exist"):
+        hns.record(tmp_path / "no" / "x.traj")
+    with pytest.raises(IsADirectoryError):
+        hns.record(tmp_path)
+    with pytest.raises(ValueError, match="episodes = 0"):
+        hns.record(tmp_path / "x.traj", episodes=0)
+    with pytest.raises(ValueError, match="hiders"):
+        hns.record(tmp_path / "x.traj", hiders=99)
+    assert not (tmp_path / "x.traj").exists()  # nothing half-written
