@@ -289,3 +289,12 @@ def test_reset_with_episodes_replays_those_scenes():
     b.reset(episodes=np.array([5, 6]))
     for name, value in a.state().items():
         assert value.tobytes() == b.state()[name].tobytes(), name
+
+
+def test_import_refuses_a_cpu_without_the_build_isa(monkeypatch):
+    assert hns._BUILD_ISA == hns.isa
+    hns._check_cpu()  # this machine built it, so it runs it
+    monkeypatch.setattr(hns, "_BUILD_ISA", "avx512")
+    monkeypatch.setitem(hns._ISA_FLAGS, "avx512", ("avx2", "no_such_cpu_flag"))
+    with pytest.raises(ImportError, match="HNS_ISA=avx512.*lacks no_such_cpu_flag: rebuild with HNS_ISA=avx2"):
+        hns._check_cpu()
