@@ -2,7 +2,8 @@
 // metrics.jsonl and checkpoint.bin (docs/training.md).
 //
 //   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
-//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--overwrite] [--profile FILE]
+//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--init-from CHECKPOINT] [--overwrite]
+//             [--profile FILE]
 #include <unistd.h>
 #include <atomic>
 #include <csignal>
@@ -39,6 +40,7 @@ struct TrainOptions {
   std::vector<std::string> sets;
   std::string out;
   std::string resume;
+  std::optional<std::string> init_from;
   std::string profile;
   bool overwrite = false;
 };
@@ -163,6 +165,16 @@ int run_train(const TrainOptions& opt) {
   if (opt.threads) cfg.threads = *opt.threads;
   if (opt.envs) cfg.envs = *opt.envs;
   if (opt.seed) cfg.seed = parse_seed("--seed", *opt.seed);
+  if (opt.init_from) {
+    if (resume)
+      throw physics::ConfigError("--init-from and --resume: a resumed run continues from its own checkpoint");
+    cfg.init_from = *opt.init_from;
+  }
+  if (!resume && !cfg.init_from.empty()) {
+    std::error_code ec;
+    if (!fs::is_regular_file(cfg.init_from, ec))
+      throw physics::ConfigError("--init-from " + cfg.init_from + ": no such checkpoint file");
+  }
   cfg.validate();
   check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model and " +
                    std::to_string(cfg.grad_groups) + " gradient groups",
@@ -195,6 +207,25 @@ int run_train(const TrainOptions& opt) {
     check_output_path("--profile", opt.profile,
                       {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string()});
   }
+  // The trainer (and the checkpoint it resumes or starts from) before any file of the folder is removed: a
+  // refused checkpoint loses nothing.
+  ppo::Trainer trainer(cfg);
+  std::string initialized;
+  if (resume) {
+    try {
+      trainer.load(ckpt);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
+      return 2;
+    }
+  } else if (!cfg.init_from.empty()) {
+    try {
+      initialized = trainer.initialize_from(cfg.init_from);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns train: --init-from: %s\n", e.what());
+      return 2;
+    }
+  }
   if (!resume) {
     if (!fs::exists(ckpt) && fs::exists(metrics_path)) {
       std::printf(
@@ -207,16 +238,7 @@ int run_train(const TrainOptions& opt) {
     }
   }
 
-  ppo::Trainer trainer(cfg);
-  if (resume) {
-    try {
-      trainer.load(ckpt);
-    } catch (const std::runtime_error& e) {
-      std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
-      return 2;
-    }
-    truncate_metrics(metrics_path, trainer.iteration());
-  }
+  if (resume) truncate_metrics(metrics_path, trainer.iteration());
   write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
 
   const batch::Layout& L = trainer.sim().layout();
@@ -230,6 +252,8 @@ int run_train(const TrainOptions& opt) {
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
                 static_cast<long long>(trainer.iteration()));
+  if (!initialized.empty())
+    std::printf("  starting from %s: %s\n", cfg.init_from.c_str(), initialized.c_str());
   std::printf(
       "  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
       dir.c_str(), dir.c_str());
@@ -370,6 +394,8 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");
   sub->add_option("--out", opt->out, "Run folder (default runs/SCENE-MODEL-seedS)");
   sub->add_option("--resume", opt->resume, "Continue the run in this folder from its checkpoint");
+  sub->add_option("--init-from", opt->init_from,
+                  "Start a new run from this checkpoint's weights (config keys init_*; docs/training.md)");
   sub->add_option("--profile", opt->profile,
                   "Write a per-phase Chrome trace (JSON) of the first 3 iterations to this file");
   sub->add_flag("--overwrite", opt->overwrite, "Start over in a --out folder that already holds a run");

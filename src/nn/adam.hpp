@@ -43,6 +43,8 @@ class Adam {
   // Optimiser state, for checkpoints.
   FloatBuffer& m() { return m_; }
   FloatBuffer& v() { return v_; }
+  const FloatBuffer& m() const { return m_; }
+  const FloatBuffer& v() const { return v_; }
   void set_steps(int64_t t) { t_ = t; }
 
  private:

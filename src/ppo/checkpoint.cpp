@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "ppo/atomic_file.hpp"
+#include "ppo/obs_arrays.hpp"
 #include "ppo/trainer.hpp"
 
 namespace hns::ppo {
@@ -173,69 +174,136 @@ TrainConfig Trainer::checkpoint_config(const std::string& path) {
   return c;
 }
 
-void Trainer::load(const std::string& path, LoadMode mode) {
+// Everything a checkpoint holds, read and checked before any of it is applied (a refused checkpoint leaves
+// the trainer untouched).
+struct Trainer::CheckpointState {
+  TrainConfig config;
+  int64_t iteration = 0, agent_steps = 0, env_steps = 0;
+  std::vector<int32_t> episodes;  // per env of the saved run
+  nn::FloatBuffer values, m, v;
+  int64_t adam_steps = 0;
+  std::array<std::vector<double>, nn::kNumObsKeys> obs_mean, obs_sq;
+  std::array<double, nn::kNumObsKeys> obs_debias{};
+  ScalarNormalizer value_norm;
+};
+
+Trainer::CheckpointState Trainer::read_checkpoint(
+    const std::string& path, const std::function<std::string(const TrainConfig&)>& mismatch) const {
   const std::string file = read_payload(path);
-  const char* payload = file.data();
-  const size_t length = file.size();
-  Reader r(payload, length, path);
-  TrainConfig saved = cfg_;
-  saved.merge_run_json(r.get_string(), path + " (config)");
-  std::string mismatch = saved.identity_mismatch(cfg_);
-  if (mode == LoadMode::kPolicy) {
-    // Only what shapes the networks must match.
-    mismatch.clear();
-    if (saved.model != cfg_.model)
-      mismatch = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
-    if (saved.scene != cfg_.scene) {
-      mismatch += std::string(mismatch.empty() ? "" : "; ") + "scene: checkpoint has " + saved.scene +
-                  ", this run has " + cfg_.scene;
-    }
+  Reader r(file.data(), file.size(), path);
+  CheckpointState st;
+  st.config = cfg_;
+  st.config.merge_run_json(r.get_string(), path + " (config)");
+  // The caller's refusal first; then the arrays, whose sizes are this trainer's (the model decides them).
+  std::string why = mismatch(st.config);
+  if (why.empty() && st.config.model != cfg_.model) {
+    why = "model: checkpoint has " + st.config.model + ", this run has " + cfg_.model;
   }
-  if (!mismatch.empty()) {
-    throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" +
-                             mismatch + ")");
+  if (!why.empty()) {
+    throw std::runtime_error("checkpoint " + path + " belongs to a run with another configuration (" + why +
+                             ")");
   }
-  // Read into temporaries first: a refused checkpoint leaves the trainer untouched.
-  const auto iteration = r.get<int64_t>();
-  const auto agent_steps = r.get<int64_t>();
-  const auto env_steps = r.get<int64_t>();
-  const bool need_restart = r.get<uint8_t>() != 0;
-  std::vector<int32_t> episodes(mode == LoadMode::kPolicy ? size_t(saved.envs) : next_episode_.size());
-  r.get_array(episodes.data(), episodes.size(), "the env episode list");
+  const TrainConfig& saved = st.config;
+  st.iteration = r.get<int64_t>();
+  st.agent_steps = r.get<int64_t>();
+  st.env_steps = r.get<int64_t>();
+  (void)r.get<uint8_t>();  // need_restart: a fresh simulator always starts the saved episodes
+  st.episodes.resize(size_t(saved.envs));
+  r.get_array(st.episodes.data(), st.episodes.size(), "the env episode list");
   const size_t nf = net_->params().buffer_floats();
-  nn::FloatBuffer values(nf), m(nf), v(nf);
-  r.get_array(values.data(), nf, "the parameter buffer");
-  r.get_array(m.data(), nf, "Adam's first moment");
-  r.get_array(v.data(), nf, "Adam's second moment");
-  const auto adam_steps = r.get<int64_t>();
-  std::array<std::vector<double>, nn::kNumObsKeys> bm, bs;
-  std::array<double, nn::kNumObsKeys> debias{};
+  st.values.resize(nf);
+  st.m.resize(nf);
+  st.v.resize(nf);
+  r.get_array(st.values.data(), nf, "the parameter buffer");
+  r.get_array(st.m.data(), nf, "Adam's first moment");
+  r.get_array(st.v.data(), nf, "Adam's second moment");
+  st.adam_steps = r.get<int64_t>();
   for (int k = 0; k < nn::kNumObsKeys; ++k) {
     const auto key = nn::ObsKey(k);
-    bm[k].resize(obs_norm_->biased_mean(key).size());
-    bs[k].resize(obs_norm_->biased_sq(key).size());
-    r.get_array(bm[k].data(), bm[k].size(), "an observation normaliser");
-    r.get_array(bs[k].data(), bs[k].size(), "an observation normaliser");
-    debias[k] = r.get<double>();
+    st.obs_mean[k].resize(obs_norm_->biased_mean(key).size());
+    st.obs_sq[k].resize(obs_norm_->biased_sq(key).size());
+    r.get_array(st.obs_mean[k].data(), st.obs_mean[k].size(), "an observation normaliser");
+    r.get_array(st.obs_sq[k].data(), st.obs_sq[k].size(), "an observation normaliser");
+    st.obs_debias[k] = r.get<double>();
   }
-  ScalarNormalizer vn = value_norm_;
-  vn.biased_mean = r.get<double>();
-  vn.biased_sq = r.get<double>();
-  vn.debias = r.get<double>();
+  st.value_norm = value_norm_;
+  st.value_norm.biased_mean = r.get<double>();
+  st.value_norm.biased_sq = r.get<double>();
+  st.value_norm.debias = r.get<double>();
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
+  return st;
+}
 
-  (void)need_restart;  // a fresh simulator always starts the saved episodes
+void Trainer::load(const std::string& path, LoadMode mode) {
+  CheckpointState st = read_checkpoint(path, [&](const TrainConfig& saved) -> std::string {
+    // kResume: every results-affecting key; kPolicy: only what shapes the networks (model, then scene).
+    if (mode == LoadMode::kResume) return saved.identity_mismatch(cfg_);
+    if (saved.scene != cfg_.scene)
+      return "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
+    return "";
+  });
+  if (mode == LoadMode::kResume && st.episodes.size() != next_episode_.size()) {
+    throw std::runtime_error("checkpoint " + path + " holds " + std::to_string(st.episodes.size()) +
+                             " envs, this run has " + std::to_string(next_episode_.size()));
+  }
   need_restart_ = true;
-  iteration_ = iteration;
-  agent_steps_ = agent_steps;
-  env_steps_ = env_steps;
-  if (mode == LoadMode::kResume) next_episode_ = std::move(episodes);
-  std::memcpy(net_->params().values(), values.data(), nf * sizeof(float));
-  std::memcpy(adam_->m().data(), m.data(), nf * sizeof(float));
-  std::memcpy(adam_->v().data(), v.data(), nf * sizeof(float));
-  adam_->set_steps(adam_steps);
-  obs_norm_->set_state(bm, bs, debias);
-  value_norm_ = vn;
+  iteration_ = st.iteration;
+  agent_steps_ = st.agent_steps;
+  env_steps_ = st.env_steps;
+  if (mode == LoadMode::kResume) next_episode_ = std::move(st.episodes);
+  const size_t nf = net_->params().buffer_floats();
+  std::memcpy(net_->params().values(), st.values.data(), nf * sizeof(float));
+  std::memcpy(adam_->m().data(), st.m.data(), nf * sizeof(float));
+  std::memcpy(adam_->v().data(), st.v.data(), nf * sizeof(float));
+  adam_->set_steps(st.adam_steps);
+  obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
+  value_norm_ = st.value_norm;
+}
+
+std::string Trainer::initialize_from(const std::string& path) {
+  if (iteration_ != 0) throw std::logic_error("Trainer::initialize_from: the run has already started");
+  const nn::ObsShape& mine = net_->config().obs;
+  CheckpointState st = read_checkpoint(path, [&](const TrainConfig& saved) -> std::string {
+    if (saved.model != cfg_.model)
+      return "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
+    batch::BatchConfig bc;
+    bc.world = saved.world();
+    const nn::ObsShape theirs = obs_shape(batch::Layout::of(bc));
+    if (theirs.max_agents != mine.max_agents || theirs.max_boxes != mine.max_boxes ||
+        theirs.max_ramps != mine.max_ramps) {
+      return "observation slots: the checkpoint's scene " + saved.scene + " has " +
+             std::to_string(theirs.max_agents) + " agents, " + std::to_string(theirs.max_boxes) + " boxes, " +
+             std::to_string(theirs.max_ramps) + " ramps, this run's " + cfg_.scene + " " +
+             std::to_string(mine.max_agents) + ", " + std::to_string(mine.max_boxes) + ", " +
+             std::to_string(mine.max_ramps);
+    }
+    return "";
+  });
+  // The policy's slices always; the value net's (with its return normaliser) when init_value is set.
+  std::string carried = "policy weights";
+  const nn::ParamLayout& layout = net_->params().layout();
+  float* values = net_->params().values();
+  for (const nn::ParamSlice& slice : layout.slices()) {
+    const bool value_net = slice.name.rfind("value/", 0) == 0;
+    if (value_net && cfg_.init_value == 0) continue;
+    std::memcpy(values + slice.offset, st.values.data() + slice.offset, slice.size() * sizeof(float));
+  }
+  if (cfg_.init_value != 0) {
+    carried += ", value weights";
+    if (cfg_.init_normalizers != 0) value_norm_ = st.value_norm;
+  }
+  if (cfg_.init_normalizers != 0) {
+    obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
+    carried += cfg_.init_value != 0 ? ", observation and return normalisers" : ", observation normaliser";
+  }
+  if (cfg_.init_optimizer != 0) {
+    const size_t nf = net_->params().buffer_floats();
+    std::memcpy(adam_->m().data(), st.m.data(), nf * sizeof(float));
+    std::memcpy(adam_->v().data(), st.v.data(), nf * sizeof(float));
+    adam_->set_steps(st.adam_steps);
+    carried += ", Adam's moments and step count";
+  }
+  return carried + " of a " + st.config.scene + " run at iteration " + std::to_string(st.iteration);
 }
 
 }  // namespace hns::ppo

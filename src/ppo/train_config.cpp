@@ -43,6 +43,10 @@ void visit_fields(Config& c, F&& f) {
   f("weight_decay", c.weight_decay, true);
   f("gamma", c.gamma, true);
   f("lambda", c.lambda, true);
+  f("init_from", c.init_from, true);
+  f("init_value", c.init_value, true);
+  f("init_normalizers", c.init_normalizers, true);
+  f("init_optimizer", c.init_optimizer, true);
   f("checkpoint_every", c.checkpoint_every, false);
   f("inject_nan_at", c.inject_nan_at, true);
 }
@@ -353,6 +357,11 @@ void TrainConfig::validate() const {
   check(checkpoint_every >= 1 && checkpoint_every <= 100000000, "checkpoint_every", checkpoint_every,
         "must be in [1, 100000000]");
   check(inject_nan_at >= 0, "inject_nan_at", inject_nan_at, "must be >= 0 (0 = never)");
+  check(init_value == 0 || init_value == 1, "init_value", init_value, "must be 0 or 1 (false or true)");
+  check(init_normalizers == 0 || init_normalizers == 1, "init_normalizers", init_normalizers,
+        "must be 0 or 1 (false or true)");
+  check(init_optimizer == 0 || init_optimizer == 1, "init_optimizer", init_optimizer,
+        "must be 0 or 1 (false or true)");
 }
 
 }  // namespace hns::ppo

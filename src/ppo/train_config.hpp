@@ -44,6 +44,12 @@ struct TrainConfig {
   double weight_decay = 0.0;
   double gamma = 0.998;
   double lambda = 0.95;
+  // Start (Trainer::initialize_from, `hns train --init-from`): a checkpoint of the same model whose scene has
+  // the same observation slots, "" = from the seed. Its policy weights always; the rest as the flags say.
+  std::string init_from;
+  int init_value = 1;        // 1: the value net's weights too (0: the value net starts from the seed)
+  int init_normalizers = 1;  // 1: the observation normaliser (and, with init_value, the return normaliser)
+  int init_optimizer = 0;    // 1: Adam's moments and step count
   // Run bookkeeping.
   int checkpoint_every = 10;  // iterations between checkpoints (and one at the end)
   int inject_nan_at = 0;      // testing: poison the loss at this iteration (0 = never)

@@ -24,6 +24,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -109,7 +110,15 @@ class Trainer {
   void load(const std::string& path, LoadMode mode = LoadMode::kResume);
   // The config stored in a checkpoint (the file is checked as load() checks it).
   static TrainConfig checkpoint_config(const std::string& path);
+  // Starts this (new) run from a checkpoint of the same model whose scene has the same observation slots
+  // (config keys init_*): the policy's weights always; the value net's with init_value; the observation
+  // normaliser (and, with the value net, the return normaliser) with init_normalizers; Adam's moments and
+  // step count with init_optimizer. Everything else (iteration, counters, episodes) starts fresh. Refuses
+  // (std::runtime_error with the reason) a damaged file or another network, leaving the trainer untouched.
+  // Returns what it carried, for the progress line.
+  std::string initialize_from(const std::string& path);
   const nn::ObsNormalizer& obs_normalizer() const { return *obs_norm_; }
+  const nn::Adam& optimizer() const { return *adam_; }
 
   // While on, iterations record their phases (rollout: observe, infer, simulate per step, with the batch's
   // per-env phases; learn: targets, gather, forward+backward and optimizer per minibatch) as trace events;
@@ -119,6 +128,11 @@ class Trainer {
 
  private:
   struct Buffers;
+  struct CheckpointState;
+  // Reads and checks a whole checkpoint; `mismatch` may refuse it by its config (a non-empty reason) before
+  // its arrays are read.
+  CheckpointState read_checkpoint(const std::string& path,
+                                  const std::function<std::string(const TrainConfig&)>& mismatch) const;
   void rollout(IterationMetrics& m);
   void compute_targets(IterationMetrics& m);
   void update(IterationMetrics& m);

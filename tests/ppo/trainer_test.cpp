@@ -295,6 +295,90 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
   std::remove(path.c_str());
 }
 
+// `hns train --init-from`: a new run starts from a checkpoint's weights, normalisers and optimiser as its
+// init_* keys say, and refuses another network.
+TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
+  const std::string path = temp_path("init_source.bin");
+  TrainConfig source_cfg = tiny_quadrant();
+  Trainer source(source_cfg);
+  source.iterate();
+  source.iterate();
+  source.save(path);
+  const std::vector<float> trained = params_of(source);
+  const nn::ParamLayout& layout = source.net().params().layout();
+  auto is_value = [](const nn::ParamSlice& s) { return s.name.rfind("value/", 0) == 0; };
+  auto floats = [](const nn::FloatBuffer& b) { return std::vector<float>(b.data(), b.data() + b.size()); };
+
+  TrainConfig cfg = tiny_quadrant();
+  cfg.seed = 11;  // other initial weights: what is carried must come from the checkpoint
+  cfg.init_from = path;
+  for (int init_value : {1, 0}) {
+    for (int norms : {1, 0}) {
+      for (int optimizer : {0, 1}) {
+        cfg.init_value = init_value;
+        cfg.init_normalizers = norms;
+        cfg.init_optimizer = optimizer;
+        Trainer fresh(cfg);
+        Trainer t(cfg);
+        const std::string said = t.initialize_from(path);
+        EXPECT_NE(said.find("policy weights"), std::string::npos) << said;
+        EXPECT_EQ(t.iteration(), 0);
+        const std::vector<float> got = params_of(t), seeded = params_of(fresh);
+        for (const nn::ParamSlice& slice : layout.slices()) {
+          const bool carried = !is_value(slice) || init_value == 1;
+          const std::vector<float>& want = carried ? trained : seeded;
+          EXPECT_TRUE(std::equal(got.begin() + long(slice.offset),
+                                 got.begin() + long(slice.offset + slice.size()),
+                                 want.begin() + long(slice.offset)))
+              << slice.name << " init_value=" << init_value;
+        }
+        for (int k = 0; k < nn::kNumObsKeys; ++k) {
+          const auto key = nn::ObsKey(k);
+          EXPECT_EQ(t.obs_normalizer().biased_mean(key),
+                    (norms ? source : fresh).obs_normalizer().biased_mean(key));
+        }
+        EXPECT_EQ(t.optimizer().steps(), optimizer ? source.optimizer().steps() : 0);
+        EXPECT_EQ(floats(t.optimizer().m()), floats((optimizer ? source : fresh).optimizer().m()));
+      }
+    }
+  }
+  // The run it starts goes on and resumes like any other, bit for bit.
+  cfg.init_value = 1;
+  cfg.init_normalizers = 1;
+  cfg.init_optimizer = 0;
+  Trainer started(cfg);
+  started.initialize_from(path);
+  started.iterate();
+  const std::string mid = temp_path("init_mid.bin");
+  started.save(mid);
+  const std::string second = metrics_but_timings(started.iterate());
+  Trainer resumed(cfg);
+  resumed.load(mid);
+  EXPECT_EQ(metrics_but_timings(resumed.iterate()), second);
+
+  auto expect_refused = [&](TrainConfig c, const std::string& needle) {
+    c.init_from = path;
+    Trainer t(c);
+    const std::vector<float> before = params_of(t);
+    try {
+      t.initialize_from(path);
+      ADD_FAILURE() << "started from a checkpoint that should fail with: " << needle;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+    EXPECT_EQ(params_of(t), before);
+  };
+  TrainConfig paper = tiny_quadrant();
+  paper.model = "paper";
+  expect_refused(paper, "model: checkpoint has small, this run has paper");
+  TrainConfig full = tiny_quadrant();
+  full.scene = "full";
+  full.horizon = 20;
+  expect_refused(full, "observation slots: the checkpoint's scene quadrant has 4 agents");
+  std::remove(path.c_str());
+  std::remove(mid.c_str());
+}
+
 TEST(Trainer, NonFiniteLossStopsWithNumericalError) {
   TrainConfig c = tiny_quadrant();
   c.inject_nan_at = 2;

@@ -200,6 +200,28 @@ else
   echo "FAIL: play --checkpoint + report"; cat "$tmp/log"
 fi
 expect_fail 2 "trained on scene 'lockbox'" play --checkpoint "$tmp/run/checkpoint.bin" --scene full --out "$tmp/p2.traj"
+# train --init-from: a new run starts from the checkpoint's weights; a bad or foreign checkpoint is refused
+# before anything of the --out folder is removed.
+if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --seed 9 --init-from "$tmp/run/checkpoint.bin" \
+     --out "$tmp/init" >"$tmp/log" 2>&1 && grep -q "starting from .*policy weights, value weights" "$tmp/log" &&
+   grep -q '"init_from": ".*run/checkpoint.bin"' "$tmp/init/config.json" &&
+   [ "$(wc -l <"$tmp/init/metrics.jsonl")" -eq 1 ] &&
+   "$hns" train --resume "$tmp/init" --iterations 2 >>"$tmp/log" 2>&1 && [ "$(wc -l <"$tmp/init/metrics.jsonl")" -eq 2 ]; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: train --init-from, then --resume"; cat "$tmp/log"
+fi
+expect_fail 2 "init-from and --resume" train --resume "$tmp/init" --init-from "$tmp/run/checkpoint.bin"
+expect_fail 2 "no such checkpoint file" train --config "$tmp/train.json" --init-from "$tmp/none.bin" --out "$tmp/bad"
+expect_fail 2 "init_value = '2'" train --config "$tmp/train.json" --set init_value=2 --out "$tmp/bad"
+cp "$tmp/init/checkpoint.bin" "$tmp/init-good.bin"
+expect_fail 2 "init-from: .*observation slots" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" \
+  --out "$tmp/init" --overwrite
+expect_fail 2 "init-from: .*not an hns checkpoint" train --config "$tmp/train.json" --init-from "$tmp/train.json" \
+  --out "$tmp/init" --overwrite
+cmp -s "$tmp/init/checkpoint.bin" "$tmp/init-good.bin" ||
+  { failed=$((failed + 1)); echo "FAIL: a refused --init-from removed the run's checkpoint"; }
 expect_fail 2 "not an hns checkpoint" play --checkpoint "$tmp/train.json" --out "$tmp/p2.traj"
 echo '{"iteration": 1, "agent_steps": 5}' >"$tmp/run/metrics.jsonl"
 echo 'garbage' >>"$tmp/run/metrics.jsonl"
