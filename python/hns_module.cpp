@@ -732,6 +732,11 @@ py::dict record(const py::object& path_arg, const std::string& scene, const py::
   if (!checkpoint_arg.is_none()) {
     checkpoint = path_from(checkpoint_arg, "checkpoint");
     if (!std::filesystem::exists(checkpoint)) raise(PyExc_FileNotFoundError, checkpoint + ": no such file");
+    std::error_code ec;
+    if (std::filesystem::equivalent(path, checkpoint, ec)) {
+      raise(PyExc_ValueError,
+            "path: " + path + " is the checkpoint this recording plays; choose another file");
+    }
     try {
       policy = ppo::Policy::from_checkpoint(checkpoint, seed);
     } catch (const std::runtime_error& e) {

@@ -170,10 +170,16 @@ int run_train(const TrainOptions& opt) {
       throw physics::ConfigError("--init-from and --resume: a resumed run continues from its own checkpoint");
     cfg.init_from = *opt.init_from;
   }
+  // The checkpoint a new run starts from: named by --init-from, or by init_from of --config or --set.
+  // Recorded as an absolute path, so the run's config.json names it from anywhere.
+  const std::string init_what = opt.init_from ? "--init-from " : "config key init_from = ";
   if (!resume && !cfg.init_from.empty()) {
     std::error_code ec;
+    if (fs::is_directory(cfg.init_from, ec))
+      throw physics::ConfigError(init_what + cfg.init_from + ": is a folder, not a checkpoint file");
     if (!fs::is_regular_file(cfg.init_from, ec))
-      throw physics::ConfigError("--init-from " + cfg.init_from + ": no such checkpoint file");
+      throw physics::ConfigError(init_what + cfg.init_from + ": no such checkpoint file");
+    cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
   }
   cfg.validate();
   check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model and " +
@@ -192,6 +198,32 @@ int run_train(const TrainOptions& opt) {
       throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
                                  ", or start over with --overwrite");
     }
+  }
+  // The trainer, and the checkpoint it resumes or starts from, before the folder is created or any file of it
+  // removed: a refused checkpoint changes nothing.
+  ppo::Trainer trainer(cfg);
+  std::string initialized;
+  if (resume) {
+    try {
+      trainer.load(ckpt);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
+      return 2;
+    }
+  } else if (!cfg.init_from.empty()) {
+    std::error_code ec;
+    if (fs::equivalent(cfg.init_from, ckpt, ec)) {
+      throw physics::ConfigError(init_what + cfg.init_from + " is the checkpoint of --out " + dir +
+                                 ", which this run replaces: copy it elsewhere first");
+    }
+    try {
+      initialized = trainer.initialize_from(cfg.init_from);
+    } catch (const std::runtime_error& e) {
+      std::fprintf(stderr, "hns train: %s%s: %s\n", init_what.c_str(), cfg.init_from.c_str(), e.what());
+      return 2;
+    }
+  }
+  if (!resume) {
     std::error_code ec;
     fs::create_directories(dir, ec);  // before the --profile check: a profile may go into the new run folder
     if (ec) throw physics::ConfigError("--out " + dir + " cannot be created: " + ec.message());
@@ -205,26 +237,8 @@ int run_train(const TrainOptions& opt) {
   }
   if (!opt.profile.empty()) {
     check_output_path("--profile", opt.profile,
-                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string()});
-  }
-  // The trainer (and the checkpoint it resumes or starts from) before any file of the folder is removed: a
-  // refused checkpoint loses nothing.
-  ppo::Trainer trainer(cfg);
-  std::string initialized;
-  if (resume) {
-    try {
-      trainer.load(ckpt);
-    } catch (const std::runtime_error& e) {
-      std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
-      return 2;
-    }
-  } else if (!cfg.init_from.empty()) {
-    try {
-      initialized = trainer.initialize_from(cfg.init_from);
-    } catch (const std::runtime_error& e) {
-      std::fprintf(stderr, "hns train: --init-from: %s\n", e.what());
-      return 2;
-    }
+                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string(),
+                       cfg.init_from, opt.config_file});
   }
   if (!resume) {
     if (!fs::exists(ckpt) && fs::exists(metrics_path)) {

@@ -94,6 +94,10 @@ def test_record_refusals(checkpoint, tmp_path):
         hns.record(tmp_path / "x.traj", scene="full", checkpoint=checkpoint)
     with pytest.raises(FileNotFoundError):
         hns.record(tmp_path / "x.traj", checkpoint=tmp_path / "none.bin")
+    before = checkpoint.read_bytes()
+    with pytest.raises(ValueError, match="is the checkpoint this recording plays"):
+        hns.record(checkpoint, checkpoint=checkpoint)
+    assert checkpoint.read_bytes() == before
     with pytest.raises(FileNotFoundError, match="folder does not exist"):
         hns.record(tmp_path / "no" / "x.traj")
     with pytest.raises(IsADirectoryError):

@@ -166,12 +166,25 @@ void Trainer::save(const std::string& path) const {
   write_file_atomically(path, file);
 }
 
+namespace {
+// The config a checkpoint holds, over `base`, checked as a run's config is: a checkpoint with an unknown key
+// or an invalid value is a bad checkpoint (std::runtime_error), not a bad command line.
+TrainConfig stored_config(Reader& r, const TrainConfig& base, const std::string& path) {
+  TrainConfig c = base;
+  try {
+    c.merge_run_json(r.get_string(), path + " (config)");
+    c.validate();
+  } catch (const physics::ConfigError& e) {
+    throw std::runtime_error("checkpoint " + path + " holds an invalid config: " + e.what());
+  }
+  return c;
+}
+}  // namespace
+
 TrainConfig Trainer::checkpoint_config(const std::string& path) {
   const std::string payload = read_payload(path);
   Reader r(payload.data(), payload.size(), path);
-  TrainConfig c;
-  c.merge_run_json(r.get_string(), path + " (config)");
-  return c;
+  return stored_config(r, TrainConfig(), path);
 }
 
 // Everything a checkpoint holds, read and checked before any of it is applied (a refused checkpoint leaves
@@ -192,8 +205,7 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   const std::string file = read_payload(path);
   Reader r(file.data(), file.size(), path);
   CheckpointState st;
-  st.config = cfg_;
-  st.config.merge_run_json(r.get_string(), path + " (config)");
+  st.config = stored_config(r, cfg_, path);
   // The caller's refusal first; then the arrays, whose sizes are this trainer's (the model decides them).
   std::string why = mismatch(st.config);
   if (why.empty() && st.config.model != cfg_.model) {
@@ -238,14 +250,15 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   CheckpointState st = read_checkpoint(path, [&](const TrainConfig& saved) -> std::string {
     // kResume: every results-affecting key; kPolicy: only what shapes the networks (model, then scene).
     if (mode == LoadMode::kResume) return saved.identity_mismatch(cfg_);
-    if (saved.scene != cfg_.scene)
-      return "scene: checkpoint has " + saved.scene + ", this run has " + cfg_.scene;
-    return "";
+    std::string why;
+    if (saved.model != cfg_.model)
+      why = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
+    if (saved.scene != cfg_.scene) {
+      why += std::string(why.empty() ? "" : "; ") + "scene: checkpoint has " + saved.scene +
+             ", this run has " + cfg_.scene;
+    }
+    return why;
   });
-  if (mode == LoadMode::kResume && st.episodes.size() != next_episode_.size()) {
-    throw std::runtime_error("checkpoint " + path + " holds " + std::to_string(st.episodes.size()) +
-                             " envs, this run has " + std::to_string(next_episode_.size()));
-  }
   need_restart_ = true;
   iteration_ = st.iteration;
   agent_steps_ = st.agent_steps;
@@ -296,7 +309,7 @@ std::string Trainer::initialize_from(const std::string& path) {
     obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
     carried += cfg_.init_value != 0 ? ", observation and return normalisers" : ", observation normaliser";
   }
-  if (cfg_.init_optimizer != 0) {
+  if (cfg_.init_optimizer != 0) {  // validate() makes sure both networks were carried
     const size_t nf = net_->params().buffer_floats();
     std::memcpy(adam_->m().data(), st.m.data(), nf * sizeof(float));
     std::memcpy(adam_->v().data(), st.v.data(), nf * sizeof(float));

@@ -235,6 +235,8 @@ std::string TrainConfig::to_json() const {
   std::string out = "{\n";
   bool first = true;
   visit_fields(*this, [&](const char* name, const auto& field, bool) {
+    // A run started from the seed writes no init_* keys: its files stay readable by versions without them.
+    if (init_from.empty() && std::string_view(name).substr(0, 5) == "init_") return;
     out += first ? "  " : ",\n  ";
     first = false;
     out += json_string(name) + ": ";
@@ -362,6 +364,9 @@ void TrainConfig::validate() const {
         "must be 0 or 1 (false or true)");
   check(init_optimizer == 0 || init_optimizer == 1, "init_optimizer", init_optimizer,
         "must be 0 or 1 (false or true)");
+  check(
+      init_optimizer == 0 || init_value == 1, "init_optimizer", init_optimizer,
+      "must be 0 when init_value is 0 (Adam's state covers both networks; a fresh value net starts it over)");
 }
 
 }  // namespace hns::ppo

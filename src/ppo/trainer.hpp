@@ -119,6 +119,7 @@ class Trainer {
   std::string initialize_from(const std::string& path);
   const nn::ObsNormalizer& obs_normalizer() const { return *obs_norm_; }
   const nn::Adam& optimizer() const { return *adam_; }
+  const ScalarNormalizer& value_normalizer() const { return value_norm_; }
 
   // While on, iterations record their phases (rollout: observe, infer, simulate per step, with the batch's
   // per-env phases; learn: targets, gather, forward+backward and optimizer per minibatch) as trace events;

@@ -202,9 +202,10 @@ fi
 expect_fail 2 "trained on scene 'lockbox'" play --checkpoint "$tmp/run/checkpoint.bin" --scene full --out "$tmp/p2.traj"
 # train --init-from: a new run starts from the checkpoint's weights; a bad or foreign checkpoint is refused
 # before anything of the --out folder is removed.
-if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --seed 9 --init-from "$tmp/run/checkpoint.bin" \
-     --out "$tmp/init" >"$tmp/log" 2>&1 && grep -q "starting from .*policy weights, value weights" "$tmp/log" &&
-   grep -q '"init_from": ".*run/checkpoint.bin"' "$tmp/init/config.json" &&
+if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --seed 9 --envs 3 \
+     --init-from "$tmp/run/checkpoint.bin" --out "$tmp/init" >"$tmp/log" 2>&1 &&
+   grep -q "starting from .*policy weights, value weights" "$tmp/log" &&
+   grep -q '"init_from": "/.*run/checkpoint.bin"' "$tmp/init/config.json" &&
    [ "$(wc -l <"$tmp/init/metrics.jsonl")" -eq 1 ] &&
    "$hns" train --resume "$tmp/init" --iterations 2 >>"$tmp/log" 2>&1 && [ "$(wc -l <"$tmp/init/metrics.jsonl")" -eq 2 ]; then
   passed=$((passed + 1))
@@ -214,11 +215,22 @@ else
 fi
 expect_fail 2 "init-from and --resume" train --resume "$tmp/init" --init-from "$tmp/run/checkpoint.bin"
 expect_fail 2 "no such checkpoint file" train --config "$tmp/train.json" --init-from "$tmp/none.bin" --out "$tmp/bad"
+expect_fail 2 "is a folder, not a checkpoint file" train --config "$tmp/train.json" --init-from "$tmp/run" --out "$tmp/bad"
+echo '{"scene": "lockbox", "envs": 4, "init_from": "none.bin"}' >"$tmp/initcfg.json"
+expect_fail 2 "config key init_from = none.bin: no such checkpoint file" train --config "$tmp/initcfg.json" --out "$tmp/bad"
+expect_fail 2 "init_optimizer = '1'.*init_value is 0" train --config "$tmp/train.json" --set init_value=0 \
+  --set init_optimizer=1 --init-from "$tmp/run/checkpoint.bin" --out "$tmp/bad"
+expect_fail 2 "profile .*is also an input" train --config "$tmp/train.json" --init-from "$tmp/good.bin" \
+  --profile "$tmp/good.bin" --out "$tmp/bad-profile"
+expect_fail 2 "observation slots" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" --out "$tmp/bad"
+[ -e "$tmp/bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused --init-from created its run folder"; }
 expect_fail 2 "init_value = '2'" train --config "$tmp/train.json" --set init_value=2 --out "$tmp/bad"
 cp "$tmp/init/checkpoint.bin" "$tmp/init-good.bin"
-expect_fail 2 "init-from: .*observation slots" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" \
+expect_fail 2 "init-from .*observation slots: the checkpoint's scene lockbox" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" \
   --out "$tmp/init" --overwrite
-expect_fail 2 "init-from: .*not an hns checkpoint" train --config "$tmp/train.json" --init-from "$tmp/train.json" \
+expect_fail 2 "init-from .*not an hns checkpoint" train --config "$tmp/train.json" --init-from "$tmp/train.json" \
+  --out "$tmp/init" --overwrite
+expect_fail 2 "is the checkpoint of --out" train --config "$tmp/train.json" --init-from "$tmp/init/checkpoint.bin" \
   --out "$tmp/init" --overwrite
 cmp -s "$tmp/init/checkpoint.bin" "$tmp/init-good.bin" ||
   { failed=$((failed + 1)); echo "FAIL: a refused --init-from removed the run's checkpoint"; }
