@@ -24,6 +24,11 @@ ParamLayout build_layout(const NetConfig& cfg, EntityNet& policy, EntityNet& val
 }  // namespace
 
 ObsBatch ObsBatch::rows_from(size_t first, const ObsShape& s) const {
+  if (index != nullptr) {
+    ObsBatch b = *this;
+    b.index = index + first;
+    return b;
+  }
   const size_t na = s.num_other_agents();
   ObsBatch b;
   b.self = offset(self, first, s.self_features);
@@ -42,11 +47,11 @@ ObsBatch ObsBatch::rows_from(size_t first, const ObsShape& s) const {
 }
 
 NetInputs ObsBatch::policy_inputs() const {
-  return {self, lidar, agents, boxes, ramps, agents_seen, boxes_seen, ramps_seen, reset};
+  return {self, lidar, agents, boxes, ramps, agents_seen, boxes_seen, ramps_seen, reset, index};
 }
 
 NetInputs ObsBatch::value_inputs() const {
-  return {self, lidar, agents, boxes, ramps, agents_present, boxes_present, ramps_present, reset};
+  return {self, lidar, agents, boxes, ramps, agents_present, boxes_present, ramps_present, reset, index};
 }
 
 // Per-thread activations for one chunk shape, and the chunk's output-gradient scratch.
@@ -166,8 +171,8 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
       const ChunkOutputs outs{first_row, rows, policy_.output(w.policy, rows), w.value.bufs().head};
       const ChunkGrads grads{Mat(w.d_logits.data(), rows, nl), w.d_value.data()};
       loss(outs, grads, std::span<double>(chunk_stats_.data() + static_cast<size_t>(c) * nstats, nstats));
-      policy_.backward(p, gg, pin, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
-      value_.backward(p, gg, vin, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
+      policy_.backward(p, gg, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
+      value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
     }
   });
 

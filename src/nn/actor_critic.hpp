@@ -25,7 +25,9 @@
 
 namespace hns::nn {
 
-// Raw observations of `rows` agent-steps with the masks of both views (caller-owned, all float).
+// Observations of `rows` agent-steps with the masks of both views (caller-owned, all float): raw, or already
+// normalised (then read with ObsNormView::identity()). With an `index`, row r of the batch is row index[r] of
+// the arrays (a training minibatch as a list of rollout rows, read without copying the rollout).
 struct ObsBatch {
   const float* self = nullptr;            // [rows, self_features]
   const float* lidar = nullptr;           // [rows, lidar_rays]
@@ -39,8 +41,9 @@ struct ObsBatch {
   const float* boxes_present = nullptr;   // [rows, max_boxes]
   const float* ramps_present = nullptr;   // [rows, max_ramps]
   const float* reset = nullptr;  // [rows] 1 where the LSTM states are zeroed before the step; null = never
+  const int32_t* index = nullptr;  // [rows] the array row of each batch row; null = row r is row r
 
-  // The same batch starting at row `first`.
+  // The same batch starting at row `first` (of the index, if there is one).
   ObsBatch rows_from(size_t first, const ObsShape& shape) const;
   NetInputs policy_inputs() const;
   NetInputs value_inputs() const;

@@ -47,6 +47,7 @@ void EntityNet::Buffers::bind(Arena& arena) {
   boxes_n = arena.take(rows * o.max_boxes * o.box_features);
   ramps_n = arena.take(rows * o.max_ramps * o.ramp_features);
   mask = arena.take(rows * e);
+  reset = arena.take(rows);
   x = arena.take(rows * e * d);
   embed_rows = arena.take(rows * d);
   embed_ent = arena.take(rows * max_count * d);
@@ -103,6 +104,11 @@ EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, co
 }
 
 namespace {
+
+// The array row of row r of the inputs.
+ptrdiff_t in_row(const NetInputs& in, int r) {
+  return in.index != nullptr ? in.index[r] : r;
+}
 
 // Entities of one type with mask 1 over rows x count slots (all of them for a null mask).
 double count_unmasked(const float* mask, int rows, int count) {
@@ -178,30 +184,40 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
   const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
 
-  // Normalise (and mask) the observations: self into main[:, 0:S), lidar, and each entity type.
-  for (int r = 0; r < rows; ++r)
-    kernels::normalize_obs(in.self + static_cast<ptrdiff_t>(r) * s, norm.mean[kObsSelf],
-                           norm.inv_std[kObsSelf], nullptr, 1, s, b.main + static_cast<ptrdiff_t>(r) * m);
-  kernels::normalize_obs(in.lidar, norm.mean[kObsLidar], norm.inv_std[kObsLidar], nullptr, rows, l,
-                         b.lidar_n);
+  // Gather the rows (through in.index, if any), normalising and clipping unless they are normalised
+  // already: self into main[:, 0:S), lidar, and each entity type. A masked entity's features are gathered
+  // like the others; nothing downstream reads them (attention and pooling skip it).
+  const bool raw = !norm.is_identity();
+  auto gather = [&](const float* src, int key, int per_row, int features, float* dst, ptrdiff_t dst_stride) {
+    for (int r = 0; r < rows; ++r) {
+      const float* from = src + in_row(in, r) * per_row;
+      float* to = dst + r * dst_stride;
+      if (raw) {
+        kernels::normalize_obs(from, norm.mean[key], norm.inv_std[key], nullptr, per_row / features, features,
+                               to);
+      } else {
+        std::memcpy(to, from, sizeof(float) * per_row);
+      }
+    }
+  };
+  gather(in.self, kObsSelf, s, s, b.main, m);
+  gather(in.lidar, kObsLidar, l, l, b.lidar_n, l);
   if (na > 0)
-    kernels::normalize_obs(in.agents, norm.mean[kObsAgents], norm.inv_std[kObsAgents], in.agents_mask,
-                           rows * na, o.agent_features, b.agents_n);
-  if (nb > 0)
-    kernels::normalize_obs(in.boxes, norm.mean[kObsBoxes], norm.inv_std[kObsBoxes], in.boxes_mask, rows * nb,
-                           o.box_features, b.boxes_n);
+    gather(in.agents, kObsAgents, na * o.agent_features, o.agent_features, b.agents_n, na * o.agent_features);
+  if (nb > 0) gather(in.boxes, kObsBoxes, nb * o.box_features, o.box_features, b.boxes_n, nb * o.box_features);
   if (nr > 0)
-    kernels::normalize_obs(in.ramps, norm.mean[kObsRamps], norm.inv_std[kObsRamps], in.ramps_mask, rows * nr,
-                           o.ramp_features, b.ramps_n);
+    gather(in.ramps, kObsRamps, nr * o.ramp_features, o.ramp_features, b.ramps_n, nr * o.ramp_features);
 
-  // Entity mask [agents, boxes, ramps, self].
+  // Entity mask [agents, boxes, ramps, self]; the reset flags of the rows.
   for (int r = 0; r < rows; ++r) {
+    const ptrdiff_t src = in_row(in, r);
     float* mk = b.mask + static_cast<ptrdiff_t>(r) * e;
-    for (int j = 0; j < na; ++j) mk[j] = in.agents_mask != nullptr ? in.agents_mask[r * na + j] : 1.0f;
-    for (int j = 0; j < nb; ++j) mk[na + j] = in.boxes_mask != nullptr ? in.boxes_mask[r * nb + j] : 1.0f;
+    for (int j = 0; j < na; ++j) mk[j] = in.agents_mask != nullptr ? in.agents_mask[src * na + j] : 1.0f;
+    for (int j = 0; j < nb; ++j) mk[na + j] = in.boxes_mask != nullptr ? in.boxes_mask[src * nb + j] : 1.0f;
     for (int j = 0; j < nr; ++j)
-      mk[na + nb + j] = in.ramps_mask != nullptr ? in.ramps_mask[r * nr + j] : 1.0f;
+      mk[na + nb + j] = in.ramps_mask != nullptr ? in.ramps_mask[src * nr + j] : 1.0f;
     mk[e - 1] = 1.0f;
+    b.reset[r] = in.reset != nullptr ? in.reset[src] : 0.0f;
   }
 
   // Lidar conv into main[:, S:), then the embeddings of self and of every entity type.
@@ -234,13 +250,13 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
                             Mat(b.dense_n, rows, cfg_.dense), b.dense_stats);
 
   // LSTM, layer norm, head.
-  lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, in.reset, state_in, b.lstm,
+  lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, b.reset, state_in, b.lstm,
                 state_out, lstm_packed);
   out_norm_.forward(params, CMat(b.lstm.h, rows, cfg_.lstm), Mat(b.out_n, rows, cfg_.lstm), b.out_stats);
   head_.forward(params, CMat(b.out_n, rows, cfg_.lstm), Mat(b.head, rows, num_outputs()));
 }
 
-void EntityNet::backward(const float* params, float* grads, const NetInputs& in, int sequences, int steps,
+void EntityNet::backward(const float* params, float* grads, int sequences, int steps,
                          CMat d_output, Work& ws, const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
@@ -254,7 +270,7 @@ void EntityNet::backward(const float* params, float* grads, const NetInputs& in,
   head_.backward_preact(params, grads, CMat(b.out_n, rows, u), d_output, Mat(b.d_out_n, rows, u), false);
   out_norm_.backward(params, grads, CMat(b.lstm.h, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
                      Mat(b.d_h, rows, u));
-  lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, in.reset, b.lstm,
+  lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, b.reset, b.lstm,
                  CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h), lstm_packed);
   const Mat dz(b.d_dense_n, rows, h);
   dense_norm_.backward_fused(params, grads, CMat(b.dense_a, rows, h), b.dense_stats, Activation::kRelu, dz,

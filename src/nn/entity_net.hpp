@@ -9,8 +9,10 @@
 //            -> dense H relu -> layer norm -> LSTM U -> layer norm -> heads
 //   policy heads: 37 logits (3 x 11 movement, 2 grab, 2 lock); value head: 1 (normalised value).
 //
-// Observations are normalised inside forward (fused normalise + mask kernel), entities with mask 0 are zeroed
-// and excluded from attention (as keys) and from pooling. The policy uses the visibility masks, the value net
+// Observations are normalised inside forward (fused normalise + clip kernel, while gathering the rows) unless
+// the caller normalised them already (ObsNormView::identity(): the trainer does it once per rollout row, for
+// both networks); entities with mask 0 are excluded from attention (as keys and queries) and from pooling, so
+// their features never reach an output. The policy uses the visibility masks, the value net
 // the omniscient ones (SPEC.md §4.6; see nn/actor_critic.hpp).
 //
 // Rows are agent-steps, sequence-major: row = b * steps + t for `sequences` sequences of `steps` steps
@@ -64,7 +66,8 @@ struct NetConfig {
 NetConfig net_preset(std::string_view name);
 std::vector<std::string> net_preset_names();
 
-// Raw observations and masks of `rows` agent-steps for one network (caller-owned; all float).
+// Observations and masks of `rows` agent-steps for one network (caller-owned; all float): raw, or normalised
+// already (ObsNormView::identity()). With an `index`, row r is row index[r] of every array.
 struct NetInputs {
   const float* self = nullptr;         // [rows, self_features]
   const float* lidar = nullptr;        // [rows, lidar_rays], m
@@ -75,6 +78,7 @@ struct NetInputs {
   const float* boxes_mask = nullptr;   // [rows, max_boxes]
   const float* ramps_mask = nullptr;   // [rows, max_ramps]
   const float* reset = nullptr;  // [rows], 1 where the LSTM state is zeroed before the step; null = never
+  const int32_t* index = nullptr;  // [rows] array row of each row; null = the identity
 };
 
 enum class NetHead { kPolicy, kValue };
@@ -87,10 +91,11 @@ class EntityNet {
     int sequences = 0, steps = 0, outputs = 0;
     float* main = nullptr;        // [rows, S + L*K] normalised self, then conv features
     float* lidar_n = nullptr;     // [rows, L] normalised lidar
-    float* agents_n = nullptr;    // [rows * A, Fa] normalised, masked rows zero
+    float* agents_n = nullptr;    // [rows * A, Fa] normalised
     float* boxes_n = nullptr;     // [rows * B, Fb]
     float* ramps_n = nullptr;     // [rows * R, Fr]
     float* mask = nullptr;        // [rows, E] entity mask (agents, boxes, ramps, self = 1)
+    float* reset = nullptr;       // [rows] the rows' reset flags (0 without any)
     float* x = nullptr;           // [rows * E, D] entity embeddings
     float* embed_rows = nullptr;  // [rows, D] scratch
     float* embed_ent = nullptr;   // [rows * max(A, B, R), D] scratch
@@ -146,7 +151,7 @@ class EntityNet {
   // [rows, num_outputs] of the last forward.
   CMat output(const Work& ws, int rows) const { return {ws.bufs().head, rows, num_outputs()}; }
   // Backward of the last forward on ws: d_output [rows, num_outputs]; accumulates into grads.
-  void backward(const float* params, float* grads, const NetInputs& in, int sequences, int steps,
+  void backward(const float* params, float* grads, int sequences, int steps,
                 CMat d_output, Work& ws, const Lstm::Packed* lstm_packed = nullptr) const;
   // The LSTM's recurrent kernel packed once for many forward/backward calls with the same params.
   size_t lstm_packed_floats() const { return lstm_.packed_floats(); }

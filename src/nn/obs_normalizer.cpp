@@ -23,19 +23,31 @@ ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
 
 void ObsNormalizer::update(const float* self, const float* lidar, const float* agents, const float* boxes,
                            const float* ramps, int rows, const uint8_t* row_mask) {
-  int counted_rows = 0;
-  for (int r = 0; r < rows; ++r) counted_rows += (row_mask == nullptr || row_mask[r] != 0) ? 1 : 0;
-  if (counted_rows == 0) return;
+  begin_update();
+  add_rows(self, lidar, agents, boxes, ramps, rows, row_mask);
+  end_update();
+}
+
+void ObsNormalizer::begin_update() {
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    pending_sum_[k].assign(features_[k], 0.0);
+    pending_sq_[k].assign(features_[k], 0.0);
+    pending_rows_[k] = 0;
+  }
+}
+
+void ObsNormalizer::add_rows(const float* self, const float* lidar, const float* agents, const float* boxes,
+                             const float* ramps, int rows, const uint8_t* row_mask) {
   const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps};
   for (int k = 0; k < kNumObsKeys; ++k) {
     if (data[k] == nullptr || values_per_row_[k] == 0) continue;
     const int f = features_[k];
     const size_t per_row = static_cast<size_t>(values_per_row_[k]);
-    const size_t count = static_cast<size_t>(counted_rows) * per_row / f;
-    std::vector<double> sum(f, 0.0);
-    std::vector<double> sq(f, 0.0);
+    std::vector<double>& sum = pending_sum_[k];
+    std::vector<double>& sq = pending_sq_[k];
     for (int r = 0; r < rows; ++r) {
       if (row_mask != nullptr && row_mask[r] == 0) continue;
+      ++pending_rows_[k];
       const float* row = data[k] + static_cast<size_t>(r) * per_row;
       for (size_t i = 0; i < per_row; i += static_cast<size_t>(f)) {
         for (int j = 0; j < f; ++j) {
@@ -45,11 +57,21 @@ void ObsNormalizer::update(const float* self, const float* lidar, const float* a
         }
       }
     }
+  }
+}
+
+void ObsNormalizer::end_update() {
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    if (pending_rows_[k] == 0) continue;
+    const int f = features_[k];
+    const double count = static_cast<double>(static_cast<size_t>(pending_rows_[k]) *
+                                              static_cast<size_t>(values_per_row_[k]) / f);
     for (int j = 0; j < f; ++j) {
-      biased_mean_[k][j] = beta_ * biased_mean_[k][j] + (1.0 - beta_) * sum[j] / static_cast<double>(count);
-      biased_sq_[k][j] = beta_ * biased_sq_[k][j] + (1.0 - beta_) * sq[j] / static_cast<double>(count);
+      biased_mean_[k][j] = beta_ * biased_mean_[k][j] + (1.0 - beta_) * pending_sum_[k][j] / count;
+      biased_sq_[k][j] = beta_ * biased_sq_[k][j] + (1.0 - beta_) * pending_sq_[k][j] / count;
     }
     debias_[k] = beta_ * debias_[k] + (1.0 - beta_);
+    pending_rows_[k] = 0;
   }
   refresh();
 }

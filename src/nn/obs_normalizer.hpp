@@ -21,10 +21,13 @@ struct ObsShape;
 
 enum ObsKey : int { kObsSelf = 0, kObsLidar, kObsAgents, kObsBoxes, kObsRamps, kNumObsKeys };
 
-// Float arrays the forward pass reads; valid while the normaliser lives and is not updated.
+// Float arrays the forward pass reads; valid while the normaliser lives and is not updated. The identity
+// view (null arrays) says the observations are normalised already: the forward only gathers them.
 struct ObsNormView {
   std::array<const float*, kNumObsKeys> mean{};     // [features of the key]
   std::array<const float*, kNumObsKeys> inv_std{};  // [features of the key]
+  static ObsNormView identity() { return {}; }
+  bool is_identity() const { return mean[kObsSelf] == nullptr; }
 };
 
 inline constexpr double kObsNormBeta = 0.99999;
@@ -41,6 +44,13 @@ class ObsNormalizer {
   // term unchanged). Deterministic (sums in index order, in double).
   void update(const float* self, const float* lidar, const float* agents, const float* boxes,
               const float* ramps, int rows, const uint8_t* row_mask = nullptr);
+  // The same update from rows that arrive in blocks (a rollout, step by step, read straight from the
+  // simulator): begin_update(), add_rows() per block in row order, end_update(). Bit-identical to one update()
+  // over all the rows; the view does not change before end_update().
+  void begin_update();
+  void add_rows(const float* self, const float* lidar, const float* agents, const float* boxes,
+                const float* ramps, int rows, const uint8_t* row_mask = nullptr);
+  void end_update();
 
   ObsNormView view() const;
   int features(ObsKey key) const { return features_[key]; }
@@ -68,6 +78,10 @@ class ObsNormalizer {
   std::array<std::vector<double>, kNumObsKeys> biased_sq_;
   std::array<std::vector<float>, kNumObsKeys> mean_f_;
   std::array<std::vector<float>, kNumObsKeys> inv_std_f_;
+  // The update in progress: per key, sums of x and x^2 per feature and the rows counted.
+  std::array<std::vector<double>, kNumObsKeys> pending_sum_;
+  std::array<std::vector<double>, kNumObsKeys> pending_sq_;
+  std::array<int64_t, kNumObsKeys> pending_rows_{};
 };
 
 }  // namespace hns::nn

@@ -1,5 +1,7 @@
 #include "ppo/obs_arrays.hpp"
 
+#include "nn/kernels.hpp"
+
 #include <cstring>
 
 namespace hns::ppo {
@@ -35,20 +37,30 @@ StepObsView StepObsView::of(const batch::BatchState& s) {
   return v;
 }
 
-void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
-  auto copy = [&](nn::FloatBuffer& dst, const float* src, size_t per_row) {
-    if (per_row > 0) std::memcpy(dst.data() + row0 * per_row, src, sizeof(float) * rows * per_row);
+void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0,
+                          const nn::ObsNormView* norm) {
+  int key = 0;  // the order of the copies below: self, lidar, agents, boxes, ramps
+  auto copy = [&](nn::FloatBuffer& dst, const float* src, size_t per_row, size_t features) {
+    const int k = key++;
+    if (per_row == 0) return;
+    float* to = dst.data() + row0 * per_row;
+    if (norm == nullptr) {
+      std::memcpy(to, src, sizeof(float) * rows * per_row);
+    } else {
+      nn::kernels::normalize_obs(src, norm->mean[k], norm->inv_std[k], nullptr, int(rows * per_row / features),
+                                 int(features), to);
+    }
   };
   auto widen = [&](nn::FloatBuffer& dst, const uint8_t* p, size_t per_row) {
     float* d = dst.data() + row0 * per_row;
     for (size_t i = 0; i < rows * per_row; ++i) d[i] = float(p[i]);
   };
   const size_t na = size_t(shape.num_other_agents());
-  copy(self, s.self, shape.self_features);
-  copy(lidar, s.lidar, shape.lidar_rays);
-  copy(agents, s.agents, na * shape.agent_features);
-  copy(boxes, s.boxes, size_t(shape.max_boxes) * shape.box_features);
-  copy(ramps, s.ramps, size_t(shape.max_ramps) * shape.ramp_features);
+  copy(self, s.self, shape.self_features, shape.self_features);
+  copy(lidar, s.lidar, shape.lidar_rays, shape.lidar_rays);
+  copy(agents, s.agents, na * shape.agent_features, shape.agent_features);
+  copy(boxes, s.boxes, size_t(shape.max_boxes) * shape.box_features, shape.box_features);
+  copy(ramps, s.ramps, size_t(shape.max_ramps) * shape.ramp_features, shape.ramp_features);
   widen(agents_seen, s.mask_agents, na);
   widen(boxes_seen, s.mask_boxes, shape.max_boxes);
   widen(ramps_seen, s.mask_ramps, shape.max_ramps);

@@ -34,11 +34,11 @@ struct StepObsView {
 // One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
 struct ObsArrays {
   // Copies the observations and masks of every agent row of the batch's current step (rows = envs x max
-  // agents) into rows [row0, row0 + rows); the reset flags are left to the caller.
-  void copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0);
-  void copy_step(const batch::BatchState& s, const nn::ObsShape& shape, size_t rows, size_t row0) {
-    copy_step(StepObsView::of(s), shape, rows, row0);
-  }
+  // agents) into rows [row0, row0 + rows), normalised and clipped on the way when `norm` is given (the
+  // networks then read them with ObsNormView::identity()); masks widened to floats; the reset flags are left
+  // to the caller.
+  void copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0,
+                 const nn::ObsNormView* norm = nullptr);
 
   nn::FloatBuffer self, lidar, agents, boxes, ramps;
   nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;

@@ -70,7 +70,8 @@ void Policy::act(const StepObsView& obs, int envs, float* policy_state, float* v
   if (actions.size() != size_t(G))
     throw std::invalid_argument("Policy::act: actions must hold envs x max_agents");
   resize(envs);
-  obs_.copy_step(obs, shape, size_t(G), 0);
+  const nn::ObsNormView norm = trainer_->obs_normalizer().view();
+  obs_.copy_step(obs, shape, size_t(G), 0, &norm);
   for (int e = 0; e < envs; ++e) {
     if (stream_episode_[e] != obs.episode[e]) {
       streams_[e] = physics::Rng(seed_ ^ kPlayStream, uint64_t(e), uint64_t(obs.episode[e]));
@@ -84,8 +85,7 @@ void Policy::act(const StepObsView& obs, int envs, float* policy_state, float* v
   }
   nn::ActorCritic::ActOutputs out;
   out.actions = actions_.data();
-  net.act(trainer_->obs_normalizer().view(), obs_.batch(), G, policy_state, value_state, uniforms_.data(),
-          out);
+  net.act(nn::ObsNormView::identity(), obs_.batch(), G, policy_state, value_state, uniforms_.data(), out);
   for (int g = 0; g < G; ++g) {
     const int32_t* a = actions_.data() + size_t(g) * heads;
     actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};

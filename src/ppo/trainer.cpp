@@ -51,7 +51,9 @@ double ScalarNormalizer::std() const {
 }
 
 struct Trainer::Buffers {
-  // Rollout, step-major: row = t * G + g.
+  // Rollout, step-major: row = t * G + g. Observations normalised once, as they are copied from the
+  // simulator (the normaliser does not move during an iteration), and read by both networks in the rollout
+  // and in every epoch of the update.
   ObsArrays obs;
   std::vector<int32_t> actions;      // [T*G, heads]
   nn::FloatBuffer logp;              // [T*G] log-probability of the sampled actions
@@ -68,8 +70,9 @@ struct Trainer::Buffers {
   nn::FloatBuffer cur_p, cur_v;                 // [G, state width]
   nn::FloatBuffer uniforms;                     // [G, heads]
   std::vector<batch::AgentAction> env_actions;  // [G]
-  // Minibatch scratch, sequence-major: row = k * bptt + j.
-  ObsArrays mb_obs;
+  // Minibatch, sequence-major: row = k * bptt + j is rollout row mb_index[row] (the observations are read
+  // through the index, the targets and states gathered).
+  std::vector<int32_t> mb_index;
   std::vector<int32_t> mb_actions;
   nn::FloatBuffer mb_logp, mb_adv, mb_ret;
   std::vector<uint8_t> mb_mask;
@@ -194,12 +197,10 @@ IterationMetrics Trainer::iterate() {
     mark("targets", t_learn);
     update(m);
     m.t_learn = seconds_since(t_learn);
-    // The observation statistics move after the update, so that a rollout and the update of its data see
-    // the same normalisation.
+    // The observation statistics (summed during the rollout) move after the update, so that a rollout and
+    // the update of its data see the same normalisation.
     const Clock::time_point t_obs = Clock::now();
-    const ObsArrays& o = buf_->obs;
-    obs_norm_->update(o.self.data(), o.lidar.data(), o.agents.data(), o.boxes.data(), o.ramps.data(),
-                      rollout_steps_ * rows_, buf_->mask.data());
+    obs_norm_->end_update();
     m.t_observe += seconds_since(t_obs);
     mark("observation normaliser", t_obs);
   });
@@ -232,14 +233,18 @@ void Trainer::rollout(IterationMetrics& m) {
   int episodes = 0;
   int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
   std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
+  obs_norm_->begin_update();
 
   for (int t = 0; t < T; ++t) {
     const size_t row0 = size_t(t) * G;
-    // Observe: copy this step's observations and masks into the buffer.
+    // Observe: this step's observations, normalised, and masks into the buffer; the real agents' raw
+    // observations into the normaliser's sums.
     Clock::time_point tp = Clock::now();
     const batch::BatchState& s = sim_->state();
     ObsArrays& o = b.obs;
-    o.copy_step(s, shape, G, row0);
+    const StepObsView view = StepObsView::of(s);
+    o.copy_step(view, shape, G, row0, &norm);
+    obs_norm_->add_rows(view.self, view.lidar, view.agents, view.boxes, view.ramps, G, s.agent_exists.data());
     for (int g = 0; g < G; ++g) {
       b.mask[row0 + g] = s.agent_exists[g];
       simulated += s.agent_exists[g];
@@ -261,8 +266,8 @@ void Trainer::rollout(IterationMetrics& m) {
     out.actions = b.actions.data() + row0 * heads;
     out.logp = b.logp.data() + row0;
     out.value = b.value_norm.data() + row0;
-    net_->act(norm, o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(), b.uniforms.data(),
-              out);
+    net_->act(nn::ObsNormView::identity(), o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(),
+              b.uniforms.data(), out);
     for (int g = 0; g < G; ++g) {
       const int32_t* a = out.actions + size_t(g) * heads;
       b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
@@ -367,7 +372,6 @@ void Trainer::compute_targets(IterationMetrics& m) {
 
 void Trainer::update(IterationMetrics& m) {
   Buffers& b = *buf_;
-  const nn::ObsShape& shape = net_->config().obs;
   const int T = rollout_steps_, G = rows_, bptt = cfg_.bptt;
   const int heads = net_->heads().num_heads();
   const int sw = net_->state_width();
@@ -388,7 +392,7 @@ void Trainer::update(IterationMetrics& m) {
   const int max_seq = (n_chunks + minibatches - 1) / minibatches;
   if (b.mb_mask.size() < size_t(max_seq) * bptt) {  // grows only: the valid chunk count varies
     const size_t rows = size_t(max_seq) * bptt;
-    b.mb_obs.allocate(shape, rows);
+    b.mb_index.assign(rows, 0);
     b.mb_actions.assign(rows * heads, 0);
     b.mb_logp.resize(rows);
     b.mb_adv.resize(rows);
@@ -398,24 +402,11 @@ void Trainer::update(IterationMetrics& m) {
     b.mb_state_v.resize(size_t(max_seq) * sw);
   }
 
-  // Rollout array -> minibatch array, for every observation array (both visited in the same order).
-  struct ArrayPair {
-    const float* from;
-    float* to;
-    size_t per_row;
-  };
-  std::vector<ArrayPair> pairs;
-  b.obs.for_each(shape, [&](nn::FloatBuffer& f, int per_row) {
-    pairs.push_back({f.data(), nullptr, size_t(per_row)});
-  });
-  size_t next = 0;
-  b.mb_obs.for_each(shape, [&](nn::FloatBuffer& f, int) { pairs[next++].to = f.data(); });
-  std::erase_if(pairs, [](const ArrayPair& a) { return a.per_row == 0; });
-
   const float clip = float(cfg_.clip);
   const double ent_coef = cfg_.entropy_coef, v_coef = cfg_.value_coef;
   const nn::CategoricalHeads& hd = net_->heads();
-  const nn::ObsNormView norm = obs_norm_->view();
+  nn::ObsBatch mb_obs = b.obs.batch();
+  mb_obs.index = b.mb_index.data();
   double sums[kNumStats] = {};
   double grad_norm_sum = 0;
   int updates = 0;
@@ -427,7 +418,7 @@ void Trainer::update(IterationMetrics& m) {
       const int k0 = int(int64_t(n_chunks) * mb / minibatches);
       const int k1 = int(int64_t(n_chunks) * (mb + 1) / minibatches);
       const int S = k1 - k0;
-      // Gather the chunks, sequence-major.
+      // The chunks' rows, sequence-major; their targets and entering states gathered.
       const Clock::time_point t_gather = Clock::now();
       tbb::parallel_for(tbb::blocked_range<int>(0, S, 8), [&](const tbb::blocked_range<int>& r) {
         for (int k = r.begin(); k < r.end(); ++k) {
@@ -439,8 +430,7 @@ void Trainer::update(IterationMetrics& m) {
                       sizeof(float) * sw);
           for (int j = 0; j < bptt; ++j) {
             const size_t src = size_t(c * bptt + j) * G + g, dst = size_t(k) * bptt + j;
-            for (const ArrayPair& a : pairs)
-              std::memcpy(a.to + dst * a.per_row, a.from + src * a.per_row, sizeof(float) * a.per_row);
+            b.mb_index[dst] = int32_t(src);
             std::memcpy(b.mb_actions.data() + dst * heads, b.actions.data() + src * heads,
                         sizeof(int32_t) * heads);
             b.mb_logp[dst] = b.logp[src];
@@ -473,7 +463,7 @@ void Trainer::update(IterationMetrics& m) {
       };
       double st[kNumStats] = {};
       float* grads = net_->params().grads();
-      net_->forward_backward(norm, b.mb_obs.batch(), S, bptt, b.mb_state_p.data(), b.mb_state_v.data(), loss,
+      net_->forward_backward(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(), b.mb_state_v.data(), loss,
                              std::span<double>(st, kNumStats), grads);
       m.t_backward += seconds_since(tp);
       tp = mark("forward+backward", tp);

@@ -12,8 +12,10 @@
 //
 // Buffer layout (structure of arrays, step-major): row = t * G + g for step t < T and agent row
 // g = env * max_agents + agent < G. Padding agent slots are stepped through the network but carry mask 0 and
-// take no part in any loss or statistic. Minibatches are gathered into sequence-major scratch
-// (row = chunk * bptt + j) for ActorCritic::forward_backward.
+// take no part in any loss or statistic. Observations are normalised once, while copied from the simulator
+// (the observation normaliser moves only between iterations), and read by both networks in the rollout and
+// in the update. A minibatch is a sequence-major list of rollout rows (row = chunk * bptt + j) that
+// ActorCritic::forward_backward reads the observations through; its targets and states are gathered.
 //
 // Determinism: the simulator and the networks are bit-identical for any thread count; everything here is
 // serial or over fixed partitions, and the random numbers (action sampling, chunk shuffles) are
@@ -63,8 +65,8 @@ struct IterationMetrics {
   double policy_loss = 0, value_loss = 0, entropy = 0, approx_kl = 0, clip_frac = 0;
   double explained_variance = 0, grad_norm = 0;
   double value_mean = 0, value_std = 0;  // value-target normaliser after the update
-  // Wall seconds per phase: simulate (BatchSim::step), observe (copy of observations and masks into the
-  // buffer, normaliser update), infer (ActorCritic::act), learn (targets, gathers, forward/backward, Adam);
+  // Wall seconds per phase: simulate (BatchSim::step), observe (observations normalised into the buffer,
+  // masks widened, the normaliser's sums and update), infer (ActorCritic::act), learn (targets, gathers, forward/backward, Adam);
   // learn = t_targets (GAE, value normaliser, minibatch gathers: outside the networks) + t_backward
   // (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;

@@ -2,6 +2,7 @@
 // gradients, masking, LSTM stepping, determinism across thread counts, and a short training run that learns.
 #include "nn/actor_critic.hpp"
 #include "nn/adam.hpp"
+#include "nn/kernels.hpp"
 
 #include "test_util.hpp"
 
@@ -75,6 +76,35 @@ ObsNormalizer fitted_normalizer(const ObsShape& s, const ObsData& d, int rows) {
 
 bool same_bits(const float* a, const float* b, size_t n) {
   return std::memcmp(a, b, n * sizeof(float)) == 0;
+}
+
+// Logits, values and parameter gradients of one forward_backward over seqs x steps rows, with fixed output
+// gradients: d logit k = a (k + 1) + b, d value = c.
+struct Result {
+  std::vector<float> logits, value, grads;
+};
+Result outputs_and_grads(ActorCritic& ac, const ObsNormView& view, const ObsBatch& obs, int seqs, int steps,
+                         float a, float b, float c) {
+  const int rows = seqs * steps, nl = ac.heads().num_logits();
+  Result res;
+  res.logits.resize(static_cast<size_t>(rows) * nl);
+  res.value.resize(rows);
+  res.grads.resize(ac.params().buffer_floats());
+  std::vector<double> stats;
+  ac.forward_backward(
+      view, obs, seqs, steps, nullptr, nullptr,
+      [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+        for (int r = 0; r < out.rows; ++r) {
+          for (int k = 0; k < nl; ++k) {
+            res.logits[(out.first_row + r) * nl + k] = out.logits.at(r, k);
+            g.d_logits.at(r, k) = a * static_cast<float>(k + 1) + b;
+          }
+          res.value[out.first_row + r] = out.value[r];
+          g.d_value[r] = c;
+        }
+      },
+      stats, res.grads.data());
+  return res;
 }
 
 TEST(NnNetwork, PaperPresetHasAboutOnePointSixMillionParameters) {
@@ -185,30 +215,8 @@ TEST(NnNetwork, MaskedEntitiesChangeNothing) {
   const int seqs = 6, steps = 2, rows = seqs * steps;
   const ObsData data(cfg.obs, rows, 200);
   const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
-  const int nl = ac.heads().num_logits();
-  struct Result {
-    std::vector<float> logits, value, grads;
-  };
   auto run = [&](const ObsData& d) {
-    Result res;
-    res.logits.resize(rows * nl);
-    res.value.resize(rows);
-    res.grads.resize(ac.params().buffer_floats());
-    std::vector<double> stats;
-    ac.forward_backward(
-        norm.view(), d.batch(), seqs, steps, nullptr, nullptr,
-        [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
-          for (int r = 0; r < out.rows; ++r) {
-            for (int k = 0; k < nl; ++k) {
-              res.logits[(out.first_row + r) * nl + k] = out.logits.at(r, k);
-              g.d_logits.at(r, k) = 0.1f * static_cast<float>(k + 1);
-            }
-            res.value[out.first_row + r] = out.value[r];
-            g.d_value[r] = 1.0f;
-          }
-        },
-        stats, res.grads.data());
-    return res;
+    return outputs_and_grads(ac, norm.view(), d.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
   };
   const Result base = run(data);
   // Scramble the features of every entity the policy does not see: the policy ignores them, the value net
@@ -242,6 +250,75 @@ TEST(NnNetwork, MaskedEntitiesChangeNothing) {
   const Result r3 = run(blind);
   EXPECT_TRUE(same_bits(base.value.data(), r3.value.data(), base.value.size()));
   EXPECT_FALSE(same_bits(base.logits.data(), r3.logits.data(), base.logits.size()));
+}
+
+// The trainer's path: observations normalised once into a rollout (rows in another order), a minibatch read
+// through a row index with the identity view. Logits, values and gradients equal, to the bit, those of the
+// same rows held contiguously, raw, and normalised inside the forward pass.
+TEST(NnNetwork, IndexedNormalisedRowsEqualContiguousRawRows) {
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 2;
+  ActorCritic ac(cfg, par);
+  ac.params().init(5);
+  const int seqs = 5, steps = 3, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 400);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const ObsNormView view = norm.view();
+  const ObsShape& s = cfg.obs;
+  const int na = s.num_other_agents(), nl = ac.heads().num_logits();
+  // Rollout row of minibatch row r: a permutation of 3 * rows rows (the others hold other data).
+  const int rollout_rows = 3 * rows;
+  std::vector<int32_t> index(rows);
+  for (int r = 0; r < rows; ++r) index[r] = (r * 7 + 4) % rollout_rows;
+  ObsData rollout(s, rollout_rows, 401);
+  auto place = [&](const std::vector<float>& src, std::vector<float>& dst, int per_row, int features, int key) {
+    for (int r = 0; r < rows; ++r) {
+      const float* from = src.data() + static_cast<size_t>(r) * per_row;
+      float* to = dst.data() + static_cast<size_t>(index[r]) * per_row;
+      if (key < 0) {
+        std::memcpy(to, from, sizeof(float) * per_row);
+      } else {
+        kernels::normalize_obs(from, view.mean[key], view.inv_std[key], nullptr, per_row / features, features,
+                               to);
+      }
+    }
+  };
+  place(data.self, rollout.self, s.self_features, s.self_features, kObsSelf);
+  place(data.lidar, rollout.lidar, s.lidar_rays, s.lidar_rays, kObsLidar);
+  place(data.agents, rollout.agents, na * s.agent_features, s.agent_features, kObsAgents);
+  place(data.boxes, rollout.boxes, s.max_boxes * s.box_features, s.box_features, kObsBoxes);
+  place(data.ramps, rollout.ramps, s.max_ramps * s.ramp_features, s.ramp_features, kObsRamps);
+  place(data.agents_seen, rollout.agents_seen, na, 1, -1);
+  place(data.boxes_seen, rollout.boxes_seen, s.max_boxes, 1, -1);
+  place(data.ramps_seen, rollout.ramps_seen, s.max_ramps, 1, -1);
+  place(data.agents_present, rollout.agents_present, na, 1, -1);
+  place(data.boxes_present, rollout.boxes_present, s.max_boxes, 1, -1);
+  place(data.ramps_present, rollout.ramps_present, s.max_ramps, 1, -1);
+  place(data.reset, rollout.reset, 1, 1, -1);
+  ObsBatch indexed = rollout.batch();
+  indexed.index = index.data();
+
+  auto run = [&](const ObsNormView& v, const ObsBatch& obs) {
+    return outputs_and_grads(ac, v, obs, seqs, steps, 0.05f, -0.3f, 0.7f);
+  };
+  const Result raw = run(view, data.batch());
+  const Result idx = run(ObsNormView::identity(), indexed);
+  EXPECT_TRUE(same_bits(raw.logits.data(), idx.logits.data(), raw.logits.size()));
+  EXPECT_TRUE(same_bits(raw.value.data(), idx.value.data(), raw.value.size()));
+  EXPECT_TRUE(same_bits(raw.grads.data(), idx.grads.data(), raw.grads.size()));
+  // And the inference path reads the same rows through rows_from.
+  const int sw = ac.state_width(), nh = ac.heads().num_heads();
+  std::vector<float> ps(static_cast<size_t>(rows) * sw, 0.0f), vs = ps, ps2 = ps, vs2 = ps;
+  const std::vector<float> uniforms(static_cast<size_t>(rows) * nh, 0.25f);
+  std::vector<int32_t> a1(static_cast<size_t>(rows) * nh), a2 = a1;
+  std::vector<float> l1(static_cast<size_t>(rows) * nl), l2 = l1;
+  ac.act(view, data.batch().rows_from(2, s), rows - 2, ps.data(), vs.data(), uniforms.data(),
+         {a1.data(), nullptr, nullptr, l1.data()});
+  ac.act(ObsNormView::identity(), indexed.rows_from(2, s), rows - 2, ps2.data(), vs2.data(), uniforms.data(),
+         {a2.data(), nullptr, nullptr, l2.data()});
+  EXPECT_TRUE(same_bits(l1.data(), l2.data(), static_cast<size_t>(rows - 2) * nl));
+  EXPECT_EQ(a1, a2);
 }
 
 TEST(NnNetwork, ChunkOfTenStepsEqualsTenActSteps) {

@@ -71,5 +71,32 @@ TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {
   EXPECT_EQ(masked.mean(kObsSelf, 0), real.mean(kObsSelf, 0));
 }
 
+// The trainer sums a rollout's statistics step by step, straight from the simulator: blocks of rows added in
+// order give the same bits as one update over all of them, padding rows skipped alike, and the view does not
+// move before the update ends.
+TEST(NnObsNormalizer, BlockUpdatesEqualOneUpdate) {
+  const ObsShape s = tiny_shape(2, 2);
+  const std::vector<float> self = {1, 2, 100, 100, 3, 4, 0.5f, -7, 2.25f, 9},
+                           lidar = {1, 1, 100, 100, 3, 3, 0.1f, 5, 6, 2},
+                           boxes = {5, 6, 100, 100, 7, 8, 0.3f, -1, 4, 4};
+  const std::vector<uint8_t> mask = {1, 0, 1, 1, 1};
+  ObsNormalizer whole(s, 0.9), blocks(s, 0.9);
+  for (int round = 0; round < 2; ++round) {
+    whole.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 5, mask.data());
+    const float before = blocks.view().mean[kObsSelf][0];
+    blocks.begin_update();
+    blocks.add_rows(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
+    blocks.add_rows(self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3, mask.data() + 2);
+    EXPECT_EQ(blocks.view().mean[kObsSelf][0], before) << "the view moved before end_update()";
+    blocks.end_update();
+    for (ObsKey k : {kObsSelf, kObsLidar, kObsBoxes}) {
+      EXPECT_EQ(whole.biased_mean(k), blocks.biased_mean(k)) << "key " << k;
+      EXPECT_EQ(whole.biased_sq(k), blocks.biased_sq(k)) << "key " << k;
+      EXPECT_EQ(whole.debias(k), blocks.debias(k)) << "key " << k;
+    }
+  }
+  EXPECT_NE(whole.mean(kObsSelf, 0), 0.0);
+}
+
 }  // namespace
 }  // namespace hns::nn
