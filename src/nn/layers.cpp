@@ -13,9 +13,31 @@ using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMa
 using ConstWeights = Eigen::Map<const RowMat>;
 using Weights = Eigen::Map<RowMat>;
 
+using simd::load;
+using simd::store;
+
 // out[0, n) += in[0, n).
 void add_row(float* out, const float* in, int n) {
-  for (int i = 0; i < n; ++i) out[i] += in[i];
+  simd::for_each<true>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(out + i, load<F>(out + i) + load<F>(in + i));
+  });
+}
+
+// y[0, n) = x[0, n) where mask[0, n) > 0, else 0 (a ReLU's backward: mask is its output). y may alias x.
+void relu_mask(const float* x, const float* mask, int n, float* y) {
+  simd::for_each<true>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(y + i, simd::select(load<F>(mask + i) > F(0.0f), load<F>(x + i), F(0.0f)));
+  });
+}
+
+// y[0, n) *= a.
+void scale_row(float* y, float a, int n) {
+  simd::for_each<true>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(y + i, load<F>(y + i) * F(a));
+  });
 }
 
 // Column sums of dz accumulated into g (rows in order).
@@ -31,9 +53,21 @@ void copy_mat(CMat src, Mat dst) {
   for (int r = 0; r < src.rows; ++r) std::memcpy(dst.row(r), src.row(r), sizeof(float) * src.cols);
 }
 
-// y[0, n) += a * x[0, n).
+// y[0, n) += a * x[0, n) (fused multiply-add).
 void axpy(float a, const float* x, float* y, int n) {
-  for (int i = 0; i < n; ++i) y[i] += a * x[i];
+  simd::for_each<true>(n, [&](auto tag, int i) {
+    using F = decltype(tag);
+    store(y + i, simd::fma(F(a), load<F>(x + i), load<F>(y + i)));
+  });
+}
+
+// y = act(x w + b), w [x.cols, y.cols]: the bias is the product's starting value (no zeroing pass, no
+// separate bias pass), the activation one pass over y while it is in cache.
+void dense_forward(CMat x, const float* w, const float* b, Activation act, Mat y) {
+  for (int r = 0; r < y.rows; ++r) std::memcpy(y.row(r), b, sizeof(float) * y.cols);
+  y.map().noalias() += x.map() * ConstWeights(w, x.cols, y.cols);
+  if (act != Activation::kNone)
+    for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), nullptr, act, y.cols);
 }
 
 }  // namespace
@@ -63,19 +97,14 @@ void Dense::forward_linear(const float* params, CMat x, Mat z) const {
 }
 
 void Dense::forward(const float* params, CMat x, Mat y) const {
-  forward_linear(params, x, y);
-  for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), params + b_, act_, out_);
+  assert(x.cols == in_ && y.cols == out_ && x.rows == y.rows);
+  dense_forward(x, params + w_, params + b_, act_, y);
 }
 
 void Dense::backward(const float* params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
                      bool accumulate_dx) const {
-  if (act_ == Activation::kRelu) {
-    for (int r = 0; r < dy.rows; ++r) {
-      const float* yr = y.row(r);
-      float* dr = dy.row(r);
-      for (int c = 0; c < out_; ++c) dr[c] = yr[c] > 0.0f ? dr[c] : 0.0f;
-    }
-  }
+  if (act_ == Activation::kRelu)
+    for (int r = 0; r < dy.rows; ++r) relu_mask(dy.row(r), y.row(r), out_, dy.row(r));
   backward_preact(params, grads, x, dy, dx, accumulate_dx);
 }
 
@@ -134,33 +163,54 @@ void LayerNorm::backward_fused(const float* params, float* grads, CMat a, const 
 // ---- CircConv1d
 // -----------------------------------------------------------------------------------------------
 
+namespace {
+
+// Longest circularly extended input of one row (channels x (length + kernel - 1)) the conv keeps on the
+// stack.
+constexpr int kConvMaxExtended = 4096;
+
+// xe[c * le + j] = x[((j - pad) mod length) * in_ch + c] for j < le = length + kernel - 1: the row's
+// channels, each circularly padded, so tap k of output position p reads xe[c * le + p + k].
+void extend_circular(const float* x, int length, int in_ch, int kernel, float* xe) {
+  const int pad = kernel / 2, le = length + kernel - 1;
+  for (int c = 0; c < in_ch; ++c)
+    for (int j = 0; j < le; ++j) xe[c * le + j] = x[((j - pad + length) % length) * in_ch + c];
+}
+
+}  // namespace
+
 CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length, int in_ch, int out_ch,
                        int kernel)
     : length_(length), in_ch_(in_ch), out_ch_(out_ch), kernel_(kernel) {
   HNS_NN_CHECK(kernel % 2 == 1, "circular conv kernel must be odd");
   HNS_NN_CHECK(kernel <= length, "circular conv kernel wider than the input");
+  HNS_NN_CHECK(in_ch * (length + kernel - 1) <= kConvMaxExtended && length <= kConvMaxExtended,
+               "circular conv input too long");
   w_ = layout.add_kernel_xavier(name + "/w", kernel * in_ch, out_ch, static_cast<float>(kernel * in_ch),
                                 static_cast<float>(kernel * out_ch));
   b_ = layout.add_vector(name + "/b", out_ch, Init::kZeros);
 }
 
+// Per row and filter, vectorised over output positions: acc[p] = b[f] + sum_{k, c} w[k, c, f] xe_c[p + k].
 void CircConv1d::forward(const float* params, CMat x, Mat y) const {
   const float* w = params + w_;
   const float* b = params + b_;
-  const int pad = kernel_ / 2;
-  const ptrdiff_t in_ch = in_ch_, out_ch = out_ch_;
+  const int le = length_ + kernel_ - 1;
+  float xe[kConvMaxExtended];
+  float acc[kConvMaxExtended];
   for (int r = 0; r < x.rows; ++r) {
-    const float* xr = x.row(r);
+    extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
     float* yr = y.row(r);
-    for (int p = 0; p < length_; ++p) {
-      float* out = yr + p * out_ch;
-      for (int f = 0; f < out_ch_; ++f) out[f] = b[f];
-      for (int k = 0; k < kernel_; ++k) {
-        const int src = (p + k - pad + length_) % length_;
-        for (int c = 0; c < in_ch_; ++c)
-          axpy(xr[src * in_ch + c], w + (k * in_ch + c) * out_ch, out, out_ch_);
-      }
-      for (int f = 0; f < out_ch_; ++f) out[f] = std::max(out[f], 0.0f);
+    for (int f = 0; f < out_ch_; ++f) {
+      simd::for_each<true>(length_, [&](auto tag, int p) {
+        using F = decltype(tag);
+        F v(b[f]);
+        for (int k = 0; k < kernel_; ++k)
+          for (int c = 0; c < in_ch_; ++c)
+            v = simd::fma(F(w[(k * in_ch_ + c) * out_ch_ + f]), load<F>(xe + c * le + p + k), v);
+        store(acc + p, simd::max(v, F(0.0f)));
+      });
+      for (int p = 0; p < length_; ++p) yr[p * out_ch_ + f] = acc[p];
     }
   }
 }
@@ -168,20 +218,23 @@ void CircConv1d::forward(const float* params, CMat x, Mat y) const {
 void CircConv1d::backward(const float* /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
   float* gw = grads + w_;
   float* gb = grads + b_;
-  const int pad = kernel_ / 2;
-  const ptrdiff_t in_ch = in_ch_, out_ch = out_ch_;
+  const int le = length_ + kernel_ - 1;
+  float xe[kConvMaxExtended];
+  float dz[kConvMaxExtended];
   for (int r = 0; r < x.rows; ++r) {
-    const float* xr = x.row(r);
+    extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
     const float* yr = y.row(r);
     float* dr = dy.row(r);
-    for (int i = 0; i < length_ * out_ch_; ++i) dr[i] = yr[i] > 0.0f ? dr[i] : 0.0f;
-    for (int p = 0; p < length_; ++p) {
-      const float* d = dr + p * out_ch;
-      add_row(gb, d, out_ch_);
-      for (int k = 0; k < kernel_; ++k) {
-        const int src = (p + k - pad + length_) % length_;
-        for (int c = 0; c < in_ch_; ++c) axpy(xr[src * in_ch + c], d, gw + (k * in_ch + c) * out_ch, out_ch_);
-      }
+    relu_mask(dr, yr, length_ * out_ch_, dr);
+    for (int f = 0; f < out_ch_; ++f) {
+      for (int p = 0; p < length_; ++p) dz[p] = dr[p * out_ch_ + f];
+      gb[f] += simd::sum<true>(length_, [&](auto tag, int p) { return load<decltype(tag)>(dz + p); });
+      for (int k = 0; k < kernel_; ++k)
+        for (int c = 0; c < in_ch_; ++c)
+          gw[(k * in_ch_ + c) * out_ch_ + f] += simd::sum<true>(length_, [&](auto tag, int p) {
+            using F = decltype(tag);
+            return load<F>(dz + p) * load<F>(xe + c * le + p + k);
+          });
     }
   }
 }
@@ -202,18 +255,15 @@ void EntityEmbedding::forward(const float* params, CMat main, CMat ent, const En
   const ConstWeights w_main(params + w_, main_width_, width_);
   const ConstWeights w_ent(params + w_ + static_cast<size_t>(main_width_) * width_, features_, width_);
   // The x_self part once per row, with the bias.
-  scratch.map().noalias() = main.map() * w_main;
-  for (int r = 0; r < scratch.rows; ++r) add_row(scratch.row(r), params + b_, width_);
-  // The entity part, one strided product per entity slot, then broadcast add and ReLU.
+  dense_forward(main, params + w_, params + b_, Activation::kNone, scratch);
+  // The entity part: every slot starts from its row's x_self part (the broadcast), one strided product per
+  // entity slot adds to it, then the ReLU.
+  for (int r = 0; r < out.rows; ++r)
+    for (int e = 0; e < out.count; ++e) std::memcpy(out.at(r, e), scratch.row(r), sizeof(float) * width_);
   for (int e = 0; e < out.count; ++e)
-    out.slot(e).map().noalias() = ent.every(e, out.count, out.rows).map() * w_ent;
-  for (int r = 0; r < out.rows; ++r) {
-    const float* s = scratch.row(r);
-    for (int e = 0; e < out.count; ++e) {
-      float* o = out.at(r, e);
-      for (int i = 0; i < width_; ++i) o[i] = std::max(o[i] + s[i], 0.0f);
-    }
-  }
+    out.slot(e).map().noalias() += ent.every(e, out.count, out.rows).map() * w_ent;
+  for (int r = 0; r < out.rows; ++r)
+    kernels::bias_act(out.at(r, 0), nullptr, Activation::kRelu, out.count * width_);
 }
 
 void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMat ent, const EntitySlots& out,
@@ -226,7 +276,7 @@ void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMa
       const float* o = out.at(r, e);
       const float* d = dout.at(r, e);
       float* z = scratch_ent.row(r * out.count + e);
-      for (int i = 0; i < width_; ++i) z[i] = o[i] > 0.0f ? d[i] : 0.0f;
+      relu_mask(d, o, width_, z);
       add_row(sum, z, width_);
     }
   }
@@ -250,10 +300,10 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   xc = arena.take(n * width);
   xn = arena.take(n * width);
   ln_pre = arena.take(n * 2);
+  w_qk = arena.take((static_cast<size_t>(width) + 1) * 2 * width);
+  dw_qk = arena.take((static_cast<size_t>(width) + 1) * 2 * width);
   qk = arena.take(n * 2 * width);
   v = arena.take(n * width);
-  q = arena.take(n * width);
-  k = arena.take(n * width);
   probs = arena.take(n * heads * entities);
   att = arena.take(n * width);
   res = arena.take(n * width);
@@ -264,8 +314,6 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   d_v = arena.take(n * width);
   d_att = arena.take(n * width);
   d_res = arena.take(n * width);
-  d_qh = arena.take(entities * dh);
-  d_kh = arena.take(entities * dh);
   d_p = arena.take(static_cast<size_t>(entities) * entities);
   const size_t ld = attention_key_stride(entities);
   kt = arena.take(dh * ld);
@@ -324,6 +372,31 @@ void weighted_rows(const float* w, ptrdiff_t w_stride, const float* rows, ptrdif
   });
 }
 
+// Wqk [d, 2d] and bqk [2d] (columns interleaved [heads, dh, (q, k)]) into out [d + 1, 2d]: W's rows, then
+// the bias, with column h * dh + i of q at h * dh + i and that of k at d + h * dh + i.
+void permute_qk(const float* w, const float* b, int d, float* out) {
+  for (int r = 0; r <= d; ++r) {
+    const float* src = r < d ? w + static_cast<ptrdiff_t>(r) * 2 * d : b;
+    float* dst = out + static_cast<ptrdiff_t>(r) * 2 * d;
+    for (int c = 0; c < d; ++c) {
+      dst[c] = src[2 * c];
+      dst[d + c] = src[2 * c + 1];
+    }
+  }
+}
+
+// The inverse, adding: permuted [d + 1, 2d] gradients into the interleaved dW [d, 2d] and db [2d].
+void unpermute_qk_add(const float* g, int d, float* dw, float* db) {
+  for (int r = 0; r <= d; ++r) {
+    const float* src = g + static_cast<ptrdiff_t>(r) * 2 * d;
+    float* dst = r < d ? dw + static_cast<ptrdiff_t>(r) * 2 * d : db;
+    for (int c = 0; c < d; ++c) {
+      dst[2 * c] += src[c];
+      dst[2 * c + 1] += src[d + c];
+    }
+  }
+}
+
 // Compact row i of src to row live[i] of dst, zeros to the rows of masked entities.
 void scatter_compact(CMat src, const int32_t* live, int n, const float* mask, Mat dst) {
   for (int i = 0; i < n; ++i) std::memcpy(dst.row(live[i]), src.row(i), sizeof(float) * dst.cols);
@@ -370,34 +443,25 @@ void SelfAttention::forward(const float* params, CMat x, const float* mask, int 
     ln_pre_.forward(params, xc, Mat(bufs.xn, n, d), bufs.ln_pre);
     xin = CMat(bufs.xn, n, d);
   }
-  qk_.forward(params, xin, Mat(bufs.qk, n, 2 * d));
+  permute_qk(params + qk_.w_offset(), params + qk_.b_offset(), d, bufs.w_qk);
+  dense_forward(xin, bufs.w_qk, bufs.w_qk + static_cast<ptrdiff_t>(d) * 2 * d, Activation::kNone,
+                Mat(bufs.qk, n, 2 * d));
   v_.forward(params, xin, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
+  const ptrdiff_t qk_stride = 2 * d;
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
-    // De-interleave q = qk[..., 0], k = qk[..., 1] into per-head [m, dh] blocks.
-    for (int e = 0; e < m; ++e) {
-      const float* src = bufs.qk + (c0 + e) * 2 * d;
-      for (int h = 0; h < heads_; ++h) {
-        float* qd = bufs.q + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
-        float* kd = bufs.k + (static_cast<ptrdiff_t>(r * heads_ + h) * e_count + e) * dh;
-        for (int i = 0; i < dh; ++i) {
-          qd[i] = src[(h * dh + i) * 2];
-          kd[i] = src[(h * dh + i) * 2 + 1];
-        }
-      }
-    }
     // Per head: each query against all keys at once (keys transposed), softmax, p·V in registers.
     const int ld = attention_key_stride(m);
     for (int h = 0; h < heads_; ++h) {
-      const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
-      const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      const float* qh = bufs.qk + c0 * qk_stride + h * dh;      // row i: qh + i * qk_stride
+      const float* kh = bufs.qk + c0 * qk_stride + d + h * dh;  // row j: kh + j * qk_stride
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
-      transpose_keys(kh, dh, m, static_cast<int>(dh), ld, bufs.kt);
+      transpose_keys(kh, qk_stride, m, static_cast<int>(dh), ld, bufs.kt);
       for (int i = 0; i < m; ++i) {
         float* pi = p + i * e_count;
-        query_times_keys(qh + i * dh, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+        query_times_keys(qh + i * qk_stride, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
         kernels::masked_softmax(bufs.scores, bufs.ones, scale, m, pi);
         weighted_rows(pi, 1, bufs.v + c0 * d + h * dh, d, m, static_cast<int>(dh), false,
                       bufs.att + (c0 + i) * d + h * dh);
@@ -425,6 +489,7 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
   const int d = width_;
   const ptrdiff_t dh = d / heads_;
   const ptrdiff_t e_count = entities;
+  const ptrdiff_t qk_stride = 2 * d;
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   // The output gradient of the unmasked entities, compact (a masked entity's output is unused).
   Mat d_res(bufs.d_res, n, d);
@@ -438,8 +503,10 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
     for (int h = 0; h < heads_; ++h) {
-      const float* qh = bufs.q + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
-      const float* kh = bufs.k + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * dh;
+      const float* qh = bufs.qk + c0 * qk_stride + h * dh;
+      const float* kh = bufs.qk + c0 * qk_stride + d + h * dh;
+      float* dqh = bufs.d_qk + c0 * qk_stride + h * dh;
+      float* dkh = bufs.d_qk + c0 * qk_stride + d + h * dh;
       const float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
       // dp[i, j] = da_i · v_j (values transposed: each da_i against every value at once).
       const int ld = attention_key_stride(m);
@@ -455,24 +522,25 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
       // dk_j = sum_i dl[i, j] q_i.
       for (int j = 0; j < m; ++j) {
         weighted_rows(p + j, e_count, da, d, m, static_cast<int>(dh), true, bufs.d_v + (c0 + j) * d + h * dh);
-        weighted_rows(bufs.d_p + j, e_count, qh, dh, m, static_cast<int>(dh), false, bufs.d_kh + j * dh);
+        weighted_rows(bufs.d_p + j, e_count, qh, qk_stride, m, static_cast<int>(dh), false,
+                      dkh + j * qk_stride);
       }
       for (int i = 0; i < m; ++i)
-        weighted_rows(bufs.d_p + i * e_count, 1, kh, dh, m, static_cast<int>(dh), false, bufs.d_qh + i * dh);
-      // Re-interleave into d_qk.
-      for (int e = 0; e < m; ++e) {
-        float* dst = bufs.d_qk + (c0 + e) * 2 * d;
-        for (int i = 0; i < dh; ++i) {
-          dst[(h * dh + i) * 2] = bufs.d_qh[e * dh + i];
-          dst[(h * dh + i) * 2 + 1] = bufs.d_kh[e * dh + i];
-        }
-      }
+        weighted_rows(bufs.d_p + i * e_count, 1, kh, qk_stride, m, static_cast<int>(dh), false,
+                      dqh + i * qk_stride);
     }
   }
   const CMat xc(bufs.xc, n, d);
   const CMat xin = pre_ln_ ? CMat(bufs.xn, n, d) : xc;
   Mat d_xn(bufs.d_xn, n, d);
-  qk_.backward_preact(params, grads, xin, CMat(bufs.d_qk, n, 2 * d), d_xn, false);
+  // Wqk's gradient in the permuted order, then added to the interleaved parameter gradient.
+  const CMat d_qk(bufs.d_qk, n, 2 * d);
+  Weights(bufs.dw_qk, d, 2 * d).noalias() = xin.map().transpose() * d_qk.map();
+  float* db_qk = bufs.dw_qk + static_cast<ptrdiff_t>(d) * 2 * d;
+  std::memset(db_qk, 0, sizeof(float) * 2 * d);
+  add_col_sums(db_qk, d_qk);
+  unpermute_qk_add(bufs.dw_qk, d, grads + qk_.w_offset(), grads + qk_.b_offset());
+  d_xn.map().noalias() = d_qk.map() * ConstWeights(bufs.w_qk, d, 2 * d).transpose();
   v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
   // dx: compact first (in d_xn; the residual path included), then moved to the entities' rows.
   if (pre_ln_) ln_pre_.backward(params, grads, xc, bufs.ln_pre, d_xn, d_xn);
@@ -492,8 +560,7 @@ void masked_mean_pool(CMat x, const float* mask, int entities, Mat out) {
     std::memset(o, 0, sizeof(float) * out.cols);
     for (int e = 0; e < entities; ++e)
       if (m[e] != 0.0f) axpy(m[e], x.row(r * entities + e), o, out.cols);
-    const float inv = 1.0f / (msum + kPoolEps);
-    for (int i = 0; i < out.cols; ++i) o[i] *= inv;
+    scale_row(o, 1.0f / (msum + kPoolEps), out.cols);
   }
 }
 
@@ -507,7 +574,10 @@ void masked_mean_pool_backward(CMat dout, const float* mask, int entities, Mat d
     for (int e = 0; e < entities; ++e) {
       float* o = dx.row(r * entities + e);
       const float s = m[e] * inv;
-      for (int i = 0; i < dout.cols; ++i) o[i] = s * d[i];
+      simd::for_each<true>(dout.cols, [&](auto tag, int i) {
+        using F = decltype(tag);
+        store(o + i, F(s) * load<F>(d + i));
+      });
     }
   }
 }
@@ -549,14 +619,11 @@ void Lstm::forward(const float* params, CMat x, int sequences, int steps, const 
   const int g4 = 4 * u;
   const int rows = sequences * steps;
   assert(x.rows == rows && x.cols == in_ && sequences <= bufs.sequences && steps == bufs.steps);
-  const ConstWeights w_x(params + w_, in_, g4);
   const float* w_h_packed = packed != nullptr ? packed->w_h : bufs.packed.w_h;
   if (packed == nullptr)
     kernels::gemm_pack(params + w_ + static_cast<size_t>(in_) * g4, g4, u, g4, false, bufs.packed.w_h);
   // Input contributions of every step at once.
-  Mat gates(bufs.gates, rows, g4);
-  gates.map().noalias() = x.map() * w_x;
-  for (int r = 0; r < rows; ++r) add_row(gates.row(r), params + b_, g4);
+  dense_forward(x, params + w_, params + b_, Activation::kNone, Mat(bufs.gates, rows, g4));
   for (int t = 0; t < steps; ++t) {
     // State entering step t: the previous step's, the caller's at t = 0, zero after a reset.
     for (int b = 0; b < sequences; ++b) {

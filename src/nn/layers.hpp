@@ -157,14 +157,15 @@ class EntityEmbedding {
 };
 
 // Masked residual multi-head self-attention block (SPEC.md §10.2 residual_sa_block, n_mlp = 1):
-//   xn = LN_pre(x) (optional); qk = xn Wqk + bqk (interleaved: q = [..., 0], k = [..., 1] of
-//   [E, heads, dh, 2]); v = xn Wv + bv; p = masked_softmax(q k^T / sqrt(dh)) over keys;
+//   xn = LN_pre(x) (optional); qk = xn Wqk + bqk (stored interleaved, as the original: q = [..., 0],
+//   k = [..., 1] of [E, heads, dh, 2]); v = xn Wv + bv; p = masked_softmax(q k^T / sqrt(dh)) over keys;
 //   att = concat_h(p v); res = x + att Wo + bo; out = LN_post(res) (optional).
 // x, out: [rows * E, width]; mask [rows, E] (0/1 per entity, shared by all queries).
 // A masked entity is neither a key nor a query: the network pools over unmasked entities only, so a masked
 // query's output is never used. Its work is skipped entirely: the unmasked entities of all rows are
 // gathered into compact rows first (every product and norm runs on those), a masked entity's output is 0
-// and it gets no gradient.
+// and it gets no gradient. Wqk's columns are permuted once per call to [q of every head, k of every head], so
+// a head's queries and keys are contiguous slices of the product's rows (no de-interleaving copy).
 // Keys of one row padded to a whole number of vectors (the attention computes a query's scores against all
 // keys at once).
 inline int attention_key_stride(int entities) {
@@ -189,22 +190,20 @@ class SelfAttention {
     float* xc = nullptr;        // [rows * E, width] x gathered
     float* xn = nullptr;        // [rows * E, width] LN_pre output (or unused if no pre LN)
     float* ln_pre = nullptr;    // [rows * E, 2] stats
-    float* qk = nullptr;        // [rows * E, 2 * width]
+    float* w_qk = nullptr;      // [width + 1, 2 * width] Wqk then bqk, columns permuted to [q heads, k heads]
+    float* dw_qk = nullptr;     // [width + 1, 2 * width] their gradient, permuted (backward scratch)
+    float* qk = nullptr;        // [rows * E, 2 * width] row: q of heads 0.., then k of heads 0..
     float* v = nullptr;         // [rows * E, width]
-    float* q = nullptr;         // [rows, heads, E, dh] de-interleaved queries
-    float* k = nullptr;         // [rows, heads, E, dh] de-interleaved keys
     float* probs = nullptr;     // [rows, heads, E, E]
     float* att = nullptr;       // [rows * E, width] heads concatenated
     float* res = nullptr;       // [rows * E, width] residual sum (before LN_post)
     float* out_c = nullptr;     // [rows * E, width] LN_post output, compact
     float* ln_post = nullptr;   // [rows * E, 2]
     float* d_xn = nullptr;      // [rows * E, width]
-    float* d_qk = nullptr;      // [rows * E, 2 * width]
+    float* d_qk = nullptr;      // [rows * E, 2 * width] permuted as qk
     float* d_v = nullptr;       // [rows * E, width]
     float* d_att = nullptr;     // [rows * E, width]
     float* d_res = nullptr;     // [rows * E, width]
-    float* d_qh = nullptr;      // [E, dh] one head's query gradient
-    float* d_kh = nullptr;      // [E, dh]
     float* d_p = nullptr;       // [E, E]
     float* kt = nullptr;        // [dh, attention_key_stride(E)] one head's keys (or values) transposed
     float* scores = nullptr;    // [attention_key_stride(E)] one query's scores
