@@ -165,16 +165,34 @@ void LayerNorm::backward_fused(const float* params, float* grads, CMat a, const 
 
 namespace {
 
-// Longest circularly extended input of one row (channels x (length + kernel - 1)) the conv keeps on the
-// stack.
-constexpr int kConvMaxExtended = 4096;
+// Longest circularly extended input of one row (channels x (padded length + kernel - 1)), and most
+// parameters (kernel x channels x filters + filters), the conv keeps on the stack.
+constexpr int kConvMaxExtended = 2048;
+constexpr int kConvMaxParams = 256;
 
-// xe[c * le + j] = x[((j - pad) mod length) * in_ch + c] for j < le = length + kernel - 1: the row's
-// channels, each circularly padded, so tap k of output position p reads xe[c * le + p + k].
+// Output positions rounded up to whole vectors: the conv computes the padding positions too (from zeros)
+// and never stores them, so no position goes through a scalar tail.
+int conv_padded_length(int length) {
+  return (length + simd::kWidth - 1) / simd::kWidth * simd::kWidth;
+}
+
+// xe[c * le + j] = x[((j - pad) mod length) * in_ch + c] for j < length + kernel - 1 and 0 up to
+// le = padded length + kernel - 1: the row's channels, each circularly padded, so tap k of output position p
+// reads xe[c * le + p + k].
 void extend_circular(const float* x, int length, int in_ch, int kernel, float* xe) {
-  const int pad = kernel / 2, le = length + kernel - 1;
-  for (int c = 0; c < in_ch; ++c)
-    for (int j = 0; j < le; ++j) xe[c * le + j] = x[((j - pad + length) % length) * in_ch + c];
+  const int pad = kernel / 2, le = conv_padded_length(length) + kernel - 1;
+  for (int c = 0; c < in_ch; ++c) {
+    for (int j = 0; j < length + kernel - 1; ++j) {
+      int src = j - pad;  // kernel <= length, so one wrap at most
+      if (src < 0) {
+        src += length;
+      } else if (src >= length) {
+        src -= length;
+      }
+      xe[c * le + j] = x[src * in_ch + c];
+    }
+    for (int j = length + kernel - 1; j < le; ++j) xe[c * le + j] = 0.0f;
+  }
 }
 
 }  // namespace
@@ -184,8 +202,9 @@ CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length,
     : length_(length), in_ch_(in_ch), out_ch_(out_ch), kernel_(kernel) {
   HNS_NN_CHECK(kernel % 2 == 1, "circular conv kernel must be odd");
   HNS_NN_CHECK(kernel <= length, "circular conv kernel wider than the input");
-  HNS_NN_CHECK(in_ch * (length + kernel - 1) <= kConvMaxExtended && length <= kConvMaxExtended,
+  HNS_NN_CHECK(in_ch * (conv_padded_length(length) + kernel - 1) <= kConvMaxExtended,
                "circular conv input too long");
+  HNS_NN_CHECK((kernel * in_ch + 1) * out_ch <= kConvMaxParams, "circular conv has too many parameters");
   w_ = layout.add_kernel_xavier(name + "/w", kernel * in_ch, out_ch, static_cast<float>(kernel * in_ch),
                                 static_cast<float>(kernel * out_ch));
   b_ = layout.add_vector(name + "/b", out_ch, Init::kZeros);
@@ -195,14 +214,14 @@ CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length,
 void CircConv1d::forward(const float* params, CMat x, Mat y) const {
   const float* w = params + w_;
   const float* b = params + b_;
-  const int le = length_ + kernel_ - 1;
+  const int lp = conv_padded_length(length_), le = lp + kernel_ - 1;
   float xe[kConvMaxExtended];
   float acc[kConvMaxExtended];
   for (int r = 0; r < x.rows; ++r) {
     extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
     float* yr = y.row(r);
     for (int f = 0; f < out_ch_; ++f) {
-      simd::for_each<true>(length_, [&](auto tag, int p) {
+      simd::for_each<true>(lp, [&](auto tag, int p) {
         using F = decltype(tag);
         F v(b[f]);
         for (int k = 0; k < kernel_; ++k)
@@ -215,26 +234,44 @@ void CircConv1d::forward(const float* params, CMat x, Mat y) const {
   }
 }
 
+// The weight and bias gradients are summed over the rows lane by lane (one vector accumulator per
+// parameter), and each reduced once at the end.
 void CircConv1d::backward(const float* /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
+  using simd::Batch;
   float* gw = grads + w_;
   float* gb = grads + b_;
-  const int le = length_ + kernel_ - 1;
+  const int lp = conv_padded_length(length_), le = lp + kernel_ - 1;
+  const int taps = kernel_ * in_ch_;
   float xe[kConvMaxExtended];
   float dz[kConvMaxExtended];
+  alignas(64) float lanes[kConvMaxParams * simd::kWidth];  // [(taps + 1) * out_ch, width]: w's, then b's
+  std::fill_n(lanes, (taps + 1) * out_ch_ * simd::kWidth, 0.0f);
+  for (int p = length_; p < lp; ++p) dz[p] = 0.0f;
   for (int r = 0; r < x.rows; ++r) {
     extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
-    const float* yr = y.row(r);
     float* dr = dy.row(r);
-    relu_mask(dr, yr, length_ * out_ch_, dr);
+    relu_mask(dr, y.row(r), length_ * out_ch_, dr);
     for (int f = 0; f < out_ch_; ++f) {
       for (int p = 0; p < length_; ++p) dz[p] = dr[p * out_ch_ + f];
-      gb[f] += simd::sum<true>(length_, [&](auto tag, int p) { return load<decltype(tag)>(dz + p); });
-      for (int k = 0; k < kernel_; ++k)
-        for (int c = 0; c < in_ch_; ++c)
-          gw[(k * in_ch_ + c) * out_ch_ + f] += simd::sum<true>(length_, [&](auto tag, int p) {
-            using F = decltype(tag);
-            return load<F>(dz + p) * load<F>(xe + c * le + p + k);
-          });
+      float* lb = lanes + (taps * out_ch_ + f) * simd::kWidth;
+      for (int p = 0; p < lp; p += simd::kWidth) {
+        const Batch d = load<Batch>(dz + p);
+        store(lb, load<Batch>(lb) + d);
+        for (int k = 0; k < kernel_; ++k)
+          for (int c = 0; c < in_ch_; ++c) {
+            float* lw = lanes + ((k * in_ch_ + c) * out_ch_ + f) * simd::kWidth;
+            store(lw, simd::fma(d, load<Batch>(xe + c * le + p + k), load<Batch>(lw)));
+          }
+      }
+    }
+  }
+  for (int i = 0; i < (taps + 1) * out_ch_; ++i) {
+    float sum = 0.0f;
+    for (int l = 0; l < simd::kWidth; ++l) sum += lanes[i * simd::kWidth + l];
+    if (i < taps * out_ch_) {
+      gw[i] += sum;
+    } else {
+      gb[i - taps * out_ch_] += sum;
     }
   }
 }
