@@ -133,6 +133,7 @@ double EntityNet::forward_flops(int rows) const {
 }
 
 double EntityNet::forward_flops_used(const NetInputs& in, int rows) const {
+  HNS_NN_CHECK(in.index == nullptr, "forward_flops_used counts contiguous rows only");
   const ObsShape& o = cfg_.obs;
   const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
   double f = conv_.flops(rows) + self_embed_.flops(rows);
@@ -204,7 +205,8 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   gather(in.lidar, kObsLidar, l, l, b.lidar_n, l);
   if (na > 0)
     gather(in.agents, kObsAgents, na * o.agent_features, o.agent_features, b.agents_n, na * o.agent_features);
-  if (nb > 0) gather(in.boxes, kObsBoxes, nb * o.box_features, o.box_features, b.boxes_n, nb * o.box_features);
+  if (nb > 0)
+    gather(in.boxes, kObsBoxes, nb * o.box_features, o.box_features, b.boxes_n, nb * o.box_features);
   if (nr > 0)
     gather(in.ramps, kObsRamps, nr * o.ramp_features, o.ramp_features, b.ramps_n, nr * o.ramp_features);
 
@@ -256,8 +258,8 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   head_.forward(params, CMat(b.out_n, rows, cfg_.lstm), Mat(b.head, rows, num_outputs()));
 }
 
-void EntityNet::backward(const float* params, float* grads, int sequences, int steps,
-                         CMat d_output, Work& ws, const Lstm::Packed* lstm_packed) const {
+void EntityNet::backward(const float* params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
+                         const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
   const int rows = sequences * steps;

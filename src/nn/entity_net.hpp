@@ -139,7 +139,8 @@ class EntityNet {
   // a backward pass is counted as twice that.
   double forward_flops(int rows) const;
   // The same counting only unmasked entities (in's masks; null masks count every slot): the work that
-  // decides the outputs. Attention skips masked entities; the embeddings compute every slot.
+  // decides the outputs. Attention skips masked entities; the embeddings compute every slot. Contiguous rows
+  // only (in.index null).
   double forward_flops_used(const NetInputs& in, int rows) const;
 
   // Forward over sequences x steps rows. state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
@@ -151,8 +152,8 @@ class EntityNet {
   // [rows, num_outputs] of the last forward.
   CMat output(const Work& ws, int rows) const { return {ws.bufs().head, rows, num_outputs()}; }
   // Backward of the last forward on ws: d_output [rows, num_outputs]; accumulates into grads.
-  void backward(const float* params, float* grads, int sequences, int steps,
-                CMat d_output, Work& ws, const Lstm::Packed* lstm_packed = nullptr) const;
+  void backward(const float* params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
+                const Lstm::Packed* lstm_packed = nullptr) const;
   // The LSTM's recurrent kernel packed once for many forward/backward calls with the same params.
   size_t lstm_packed_floats() const { return lstm_.packed_floats(); }
   void pack_lstm(const float* params, bool for_backward, Lstm::Packed& out) const {

@@ -23,31 +23,53 @@ ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
 
 void ObsNormalizer::update(const float* self, const float* lidar, const float* agents, const float* boxes,
                            const float* ramps, int rows, const uint8_t* row_mask) {
-  begin_update();
-  add_rows(self, lidar, agents, boxes, ramps, rows, row_mask);
-  end_update();
+  Sums sums = make_sums();
+  add_rows(sums, self, lidar, agents, boxes, ramps, rows, row_mask);
+  apply(sums);
 }
 
-void ObsNormalizer::begin_update() {
+void ObsNormalizer::Sums::clear() {
   for (int k = 0; k < kNumObsKeys; ++k) {
-    pending_sum_[k].assign(features_[k], 0.0);
-    pending_sq_[k].assign(features_[k], 0.0);
-    pending_rows_[k] = 0;
+    std::fill(sum[k].begin(), sum[k].end(), 0.0);
+    std::fill(sq[k].begin(), sq[k].end(), 0.0);
+    rows[k] = 0;
   }
 }
 
-void ObsNormalizer::add_rows(const float* self, const float* lidar, const float* agents, const float* boxes,
-                             const float* ramps, int rows, const uint8_t* row_mask) {
+void ObsNormalizer::Sums::merge(const Sums& other) {
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    HNS_NN_CHECK(sum[k].size() == other.sum[k].size(), "observation sums of another shape");
+    for (size_t j = 0; j < sum[k].size(); ++j) {
+      sum[k][j] += other.sum[k][j];
+      sq[k][j] += other.sq[k][j];
+    }
+    rows[k] += other.rows[k];
+  }
+}
+
+ObsNormalizer::Sums ObsNormalizer::make_sums() const {
+  Sums s;
+  for (int k = 0; k < kNumObsKeys; ++k) {
+    s.sum[k].assign(features_[k], 0.0);
+    s.sq[k].assign(features_[k], 0.0);
+  }
+  return s;
+}
+
+void ObsNormalizer::add_rows(Sums& sums, const float* self, const float* lidar, const float* agents,
+                             const float* boxes, const float* ramps, int rows,
+                             const uint8_t* row_mask) const {
   const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps};
   for (int k = 0; k < kNumObsKeys; ++k) {
     if (data[k] == nullptr || values_per_row_[k] == 0) continue;
     const int f = features_[k];
+    HNS_NN_CHECK(sums.sum[k].size() == static_cast<size_t>(f), "observation sums of another shape");
     const size_t per_row = static_cast<size_t>(values_per_row_[k]);
-    std::vector<double>& sum = pending_sum_[k];
-    std::vector<double>& sq = pending_sq_[k];
+    double* sum = sums.sum[k].data();
+    double* sq = sums.sq[k].data();
     for (int r = 0; r < rows; ++r) {
       if (row_mask != nullptr && row_mask[r] == 0) continue;
-      ++pending_rows_[k];
+      ++sums.rows[k];
       const float* row = data[k] + static_cast<size_t>(r) * per_row;
       for (size_t i = 0; i < per_row; i += static_cast<size_t>(f)) {
         for (int j = 0; j < f; ++j) {
@@ -60,18 +82,18 @@ void ObsNormalizer::add_rows(const float* self, const float* lidar, const float*
   }
 }
 
-void ObsNormalizer::end_update() {
+void ObsNormalizer::apply(const Sums& sums) {
   for (int k = 0; k < kNumObsKeys; ++k) {
-    if (pending_rows_[k] == 0) continue;
+    if (sums.rows[k] == 0) continue;
     const int f = features_[k];
-    const double count = static_cast<double>(static_cast<size_t>(pending_rows_[k]) *
-                                              static_cast<size_t>(values_per_row_[k]) / f);
+    HNS_NN_CHECK(sums.sum[k].size() == static_cast<size_t>(f), "observation sums of another shape");
+    const double count =
+        static_cast<double>(static_cast<size_t>(sums.rows[k]) * static_cast<size_t>(values_per_row_[k]) / f);
     for (int j = 0; j < f; ++j) {
-      biased_mean_[k][j] = beta_ * biased_mean_[k][j] + (1.0 - beta_) * pending_sum_[k][j] / count;
-      biased_sq_[k][j] = beta_ * biased_sq_[k][j] + (1.0 - beta_) * pending_sq_[k][j] / count;
+      biased_mean_[k][j] = beta_ * biased_mean_[k][j] + (1.0 - beta_) * sums.sum[k][j] / count;
+      biased_sq_[k][j] = beta_ * biased_sq_[k][j] + (1.0 - beta_) * sums.sq[k][j] / count;
     }
     debias_[k] = beta_ * debias_[k] + (1.0 - beta_);
-    pending_rows_[k] = 0;
   }
   refresh();
 }

@@ -44,13 +44,21 @@ class ObsNormalizer {
   // term unchanged). Deterministic (sums in index order, in double).
   void update(const float* self, const float* lidar, const float* agents, const float* boxes,
               const float* ramps, int rows, const uint8_t* row_mask = nullptr);
-  // The same update from rows that arrive in blocks (a rollout, step by step, read straight from the
-  // simulator): begin_update(), add_rows() per block in row order, end_update(). Bit-identical to one update()
-  // over all the rows; the view does not change before end_update().
-  void begin_update();
-  void add_rows(const float* self, const float* lidar, const float* agents, const float* boxes,
-                const float* ramps, int rows, const uint8_t* row_mask = nullptr);
-  void end_update();
+  // The same update from rows that arrive in blocks (a rollout, step by step and env by env, read straight
+  // from the simulator): the sums of x and x^2 per feature and the rows counted, per key, filled by
+  // add_rows(), merged (summed) with others, and applied as one EMA update. update() is one add_rows() and
+  // apply(); sums taken in another grouping differ from it only in rounding.
+  struct Sums {
+    std::array<std::vector<double>, kNumObsKeys> sum, sq;  // [features of the key]
+    std::array<int64_t, kNumObsKeys> rows{};               // rows counted per key (a null key counts none)
+    void clear();
+    void merge(const Sums& other);
+  };
+  Sums make_sums() const;
+  void add_rows(Sums& sums, const float* self, const float* lidar, const float* agents, const float* boxes,
+                const float* ramps, int rows, const uint8_t* row_mask = nullptr) const;
+  // One EMA update from the sums (keys without counted rows unchanged).
+  void apply(const Sums& sums);
 
   ObsNormView view() const;
   int features(ObsKey key) const { return features_[key]; }
@@ -78,10 +86,6 @@ class ObsNormalizer {
   std::array<std::vector<double>, kNumObsKeys> biased_sq_;
   std::array<std::vector<float>, kNumObsKeys> mean_f_;
   std::array<std::vector<float>, kNumObsKeys> inv_std_f_;
-  // The update in progress: per key, sums of x and x^2 per feature and the rows counted.
-  std::array<std::vector<double>, kNumObsKeys> pending_sum_;
-  std::array<std::vector<double>, kNumObsKeys> pending_sq_;
-  std::array<int64_t, kNumObsKeys> pending_rows_{};
 };
 
 }  // namespace hns::nn

@@ -47,8 +47,8 @@ void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_
     if (norm == nullptr) {
       std::memcpy(to, src, sizeof(float) * rows * per_row);
     } else {
-      nn::kernels::normalize_obs(src, norm->mean[k], norm->inv_std[k], nullptr, int(rows * per_row / features),
-                                 int(features), to);
+      nn::kernels::normalize_obs(src, norm->mean[k], norm->inv_std[k], nullptr,
+                                 int(rows * per_row / features), int(features), to);
     }
   };
   auto widen = [&](nn::FloatBuffer& dst, const uint8_t* p, size_t per_row) {

@@ -31,7 +31,8 @@ struct StepObsView {
   static StepObsView of(const batch::BatchState& s);
 };
 
-// One set of per-row observation arrays, `rows` rows (rollout: T x G step-major; minibatch: sequence-major).
+// One set of per-row observation arrays, `rows` rows (the trainer's rollout: T x G step-major, normalised;
+// Policy: one step, normalised).
 struct ObsArrays {
   // Copies the observations and masks of every agent row of the batch's current step (rows = envs x max
   // agents) into rows [row0, row0 + rows), normalised and clipped on the way when `norm` is given (the
@@ -74,23 +75,6 @@ struct ObsArrays {
     b.ramps_present = ramps_present.data();
     b.reset = reset.data();
     return b;
-  }
-  // Calls f(buffer, floats per row) for every array.
-  template <class F>
-  void for_each(const nn::ObsShape& s, F&& f) {
-    const int na = s.num_other_agents();
-    f(self, s.self_features);
-    f(lidar, s.lidar_rays);
-    f(agents, na * s.agent_features);
-    f(boxes, s.max_boxes * s.box_features);
-    f(ramps, s.max_ramps * s.ramp_features);
-    f(agents_seen, na);
-    f(boxes_seen, s.max_boxes);
-    f(ramps_seen, s.max_ramps);
-    f(agents_present, na);
-    f(boxes_present, s.max_boxes);
-    f(ramps_present, s.max_ramps);
-    f(reset, 1);
   }
 };
 

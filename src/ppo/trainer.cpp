@@ -79,6 +79,11 @@ struct Trainer::Buffers {
   nn::FloatBuffer mb_state_p, mb_state_v;
   std::vector<int32_t> chunks;         // valid chunk ids c * G + g
   std::vector<int32_t> episode_start;  // [E] rollout step at which each env's current episode started
+  // Observation normaliser sums of the rollout's real agent-steps: per env those of its current episode,
+  // added to the rollout's when the episode ends (dropped if it is discarded for numerical trouble, like
+  // every other statistic of such an episode), the open ones at the end of the rollout in env order.
+  nn::ObsNormalizer::Sums obs_sums;
+  std::vector<nn::ObsNormalizer::Sums> episode_obs_sums;         // [E]
   tbb::enumerable_thread_specific<PpoLossScratch> loss_scratch;  // per thread
 };
 
@@ -148,6 +153,8 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
   b.uniforms.resize(G * heads);
   b.env_actions.resize(G);
   b.episode_start.assign(size_t(cfg_.envs), 0);
+  b.obs_sums = obs_norm_->make_sums();
+  b.episode_obs_sums.assign(size_t(cfg_.envs), b.obs_sums);
   next_episode_.assign(cfg_.envs, 0);
 }
 
@@ -200,7 +207,7 @@ IterationMetrics Trainer::iterate() {
     // The observation statistics (summed during the rollout) move after the update, so that a rollout and
     // the update of its data see the same normalisation.
     const Clock::time_point t_obs = Clock::now();
-    obs_norm_->end_update();
+    obs_norm_->apply(buf_->obs_sums);
     m.t_observe += seconds_since(t_obs);
     mark("observation normaliser", t_obs);
   });
@@ -233,18 +240,28 @@ void Trainer::rollout(IterationMetrics& m) {
   int episodes = 0;
   int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
   std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
-  obs_norm_->begin_update();
+  b.obs_sums.clear();
+  for (nn::ObsNormalizer::Sums& e : b.episode_obs_sums) e.clear();
+  const size_t na = size_t(shape.num_other_agents());
+  const size_t per_agent[5] = {size_t(shape.self_features), size_t(shape.lidar_rays),
+                               na * shape.agent_features, size_t(shape.max_boxes) * shape.box_features,
+                               size_t(shape.max_ramps) * shape.ramp_features};
 
   for (int t = 0; t < T; ++t) {
     const size_t row0 = size_t(t) * G;
     // Observe: this step's observations, normalised, and masks into the buffer; the real agents' raw
-    // observations into the normaliser's sums.
+    // observations into their episode's normaliser sums.
     Clock::time_point tp = Clock::now();
     const batch::BatchState& s = sim_->state();
     ObsArrays& o = b.obs;
     const StepObsView view = StepObsView::of(s);
     o.copy_step(view, shape, G, row0, &norm);
-    obs_norm_->add_rows(view.self, view.lidar, view.agents, view.boxes, view.ramps, G, s.agent_exists.data());
+    for (int e = 0; e < E; ++e) {
+      const size_t r = size_t(e) * A;
+      const auto at = [&](const float* p, int key) { return p == nullptr ? p : p + r * per_agent[key]; };
+      obs_norm_->add_rows(b.episode_obs_sums[e], at(view.self, 0), at(view.lidar, 1), at(view.agents, 2),
+                          at(view.boxes, 3), at(view.ramps, 4), A, s.agent_exists.data() + r);
+    }
     for (int g = 0; g < G; ++g) {
       b.mask[row0 + g] = s.agent_exists[g];
       simulated += s.agent_exists[g];
@@ -266,8 +283,8 @@ void Trainer::rollout(IterationMetrics& m) {
     out.actions = b.actions.data() + row0 * heads;
     out.logp = b.logp.data() + row0;
     out.value = b.value_norm.data() + row0;
-    net_->act(nn::ObsNormView::identity(), o.batch().rows_from(row0, shape), G, b.cur_p.data(), b.cur_v.data(),
-              b.uniforms.data(), out);
+    net_->act(nn::ObsNormView::identity(), o.batch().rows_from(row0, shape), G, b.cur_p.data(),
+              b.cur_v.data(), b.uniforms.data(), out);
     for (int g = 0; g < G; ++g) {
       const int32_t* a = out.actions + size_t(g) * heads;
       b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
@@ -291,6 +308,8 @@ void Trainer::rollout(IterationMetrics& m) {
     for (const batch::EpisodeStats& st : sim_->finished()) {
       const int first = b.episode_start[st.env];
       b.episode_start[st.env] = t + 1;
+      if (!st.discarded) b.obs_sums.merge(b.episode_obs_sums[st.env]);
+      b.episode_obs_sums[st.env].clear();
       if (st.discarded) {
         // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
         // rollout leave every loss and statistic, as padding agents do.
@@ -310,6 +329,8 @@ void Trainer::rollout(IterationMetrics& m) {
     m.t_observe += seconds_since(tp);
     mark("observe", tp);
   }
+
+  for (const nn::ObsNormalizer::Sums& e : b.episode_obs_sums) b.obs_sums.merge(e);
 
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
   // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh.
@@ -463,8 +484,8 @@ void Trainer::update(IterationMetrics& m) {
       };
       double st[kNumStats] = {};
       float* grads = net_->params().grads();
-      net_->forward_backward(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(), b.mb_state_v.data(), loss,
-                             std::span<double>(st, kNumStats), grads);
+      net_->forward_backward(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(),
+                             b.mb_state_v.data(), loss, std::span<double>(st, kNumStats), grads);
       m.t_backward += seconds_since(tp);
       tp = mark("forward+backward", tp);
       const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);

@@ -66,9 +66,9 @@ struct IterationMetrics {
   double explained_variance = 0, grad_norm = 0;
   double value_mean = 0, value_std = 0;  // value-target normaliser after the update
   // Wall seconds per phase: simulate (BatchSim::step), observe (observations normalised into the buffer,
-  // masks widened, the normaliser's sums and update), infer (ActorCritic::act), learn (targets, gathers, forward/backward, Adam);
-  // learn = t_targets (GAE, value normaliser, minibatch gathers: outside the networks) + t_backward
-  // (forward + loss + backward of the minibatches) + t_optimizer (Adam).
+  // masks widened, the normaliser's sums and update), infer (ActorCritic::act), learn (targets, gathers,
+  // forward/backward, Adam); learn = t_targets (GAE, value normaliser, minibatch gathers: outside the
+  // networks) + t_backward (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
   double t_targets = 0, t_backward = 0, t_optimizer = 0;
   int64_t unstable_resets = 0;  // envs reset by numerical trouble during this iteration

@@ -272,7 +272,8 @@ TEST(NnNetwork, IndexedNormalisedRowsEqualContiguousRawRows) {
   std::vector<int32_t> index(rows);
   for (int r = 0; r < rows; ++r) index[r] = (r * 7 + 4) % rollout_rows;
   ObsData rollout(s, rollout_rows, 401);
-  auto place = [&](const std::vector<float>& src, std::vector<float>& dst, int per_row, int features, int key) {
+  auto place = [&](const std::vector<float>& src, std::vector<float>& dst, int per_row, int features,
+                   int key) {
     for (int r = 0; r < rows; ++r) {
       const float* from = src.data() + static_cast<size_t>(r) * per_row;
       float* to = dst.data() + static_cast<size_t>(index[r]) * per_row;

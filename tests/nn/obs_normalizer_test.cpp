@@ -71,31 +71,52 @@ TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {
   EXPECT_EQ(masked.mean(kObsSelf, 0), real.mean(kObsSelf, 0));
 }
 
-// The trainer sums a rollout's statistics step by step, straight from the simulator: blocks of rows added in
-// order give the same bits as one update over all of them, padding rows skipped alike, and the view does not
-// move before the update ends.
-TEST(NnObsNormalizer, BlockUpdatesEqualOneUpdate) {
+// The trainer sums a rollout's statistics block by block, straight from the simulator: blocks added in row
+// order to one Sums give the same bits as one update over all the rows (padding rows skipped alike), merged
+// Sums of separate blocks the same statistics up to rounding, and nothing moves before apply().
+TEST(NnObsNormalizer, BlockSumsEqualOneUpdate) {
   const ObsShape s = tiny_shape(2, 2);
   const std::vector<float> self = {1, 2, 100, 100, 3, 4, 0.5f, -7, 2.25f, 9},
                            lidar = {1, 1, 100, 100, 3, 3, 0.1f, 5, 6, 2},
                            boxes = {5, 6, 100, 100, 7, 8, 0.3f, -1, 4, 4};
   const std::vector<uint8_t> mask = {1, 0, 1, 1, 1};
-  ObsNormalizer whole(s, 0.9), blocks(s, 0.9);
+  ObsNormalizer whole(s, 0.9), blocks(s, 0.9), merged(s, 0.9);
   for (int round = 0; round < 2; ++round) {
     whole.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 5, mask.data());
-    const float before = blocks.view().mean[kObsSelf][0];
-    blocks.begin_update();
-    blocks.add_rows(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
-    blocks.add_rows(self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3, mask.data() + 2);
-    EXPECT_EQ(blocks.view().mean[kObsSelf][0], before) << "the view moved before end_update()";
-    blocks.end_update();
+    ObsNormalizer::Sums one = blocks.make_sums(), first = merged.make_sums(), second = merged.make_sums();
+    blocks.add_rows(one, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
+    blocks.add_rows(one, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3,
+                    mask.data() + 2);
+    merged.add_rows(second, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3,
+                    mask.data() + 2);
+    merged.add_rows(first, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
+    first.merge(second);
+    EXPECT_EQ(one.rows[kObsSelf], 4);
+    EXPECT_EQ(first.rows, one.rows);
+    const double before = blocks.mean(kObsSelf, 0);
+    ObsNormalizer::Sums dropped = blocks.make_sums();
+    blocks.add_rows(dropped, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 5);
+    dropped.clear();  // what the trainer does with the sums of a discarded episode
+    EXPECT_EQ(blocks.mean(kObsSelf, 0), before) << "the statistics moved before apply()";
+    blocks.apply(one);
+    merged.apply(first);
     for (ObsKey k : {kObsSelf, kObsLidar, kObsBoxes}) {
       EXPECT_EQ(whole.biased_mean(k), blocks.biased_mean(k)) << "key " << k;
       EXPECT_EQ(whole.biased_sq(k), blocks.biased_sq(k)) << "key " << k;
       EXPECT_EQ(whole.debias(k), blocks.debias(k)) << "key " << k;
+      EXPECT_EQ(whole.debias(k), merged.debias(k)) << "key " << k;
+      for (int j = 0; j < whole.features(k); ++j) {
+        EXPECT_NEAR(whole.mean(k, j), merged.mean(k, j), 1e-12) << "key " << k;
+        EXPECT_NEAR(whole.std(k, j), merged.std(k, j), 1e-9) << "key " << k;
+      }
     }
   }
   EXPECT_NE(whole.mean(kObsSelf, 0), 0.0);
+  // Empty sums change nothing.
+  const double m = blocks.mean(kObsBoxes, 1);
+  blocks.apply(blocks.make_sums());
+  EXPECT_EQ(blocks.mean(kObsBoxes, 1), m);
+  EXPECT_EQ(blocks.debias(kObsBoxes), whole.debias(kObsBoxes));
 }
 
 }  // namespace

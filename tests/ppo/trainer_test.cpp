@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "physics/scene.hpp"
+#include "ppo/obs_arrays.hpp"
 
 namespace hns::ppo {
 namespace {
@@ -144,6 +145,37 @@ TEST(Trainer, RunsAnIterationWithFiniteDiagnostics) {
   EXPECT_NEAR(field("time_other"), m.t_other, 1e-4);
   EXPECT_NEAR(field("policy_loss"), m.policy_loss, 1e-5 * (1 + std::abs(m.policy_loss)));
   EXPECT_EQ(field("unstable_resets"), double(m.unstable_resets));
+}
+
+// The rollout normalises each key of a step's observations with that key's statistics as it copies them:
+// the network acting on those rows (identity view) gives the bits of the network acting on the raw rows and
+// normalising them itself.
+TEST(ObsArrays, CopyStepNormalisesEachKeyWithItsStatistics) {
+  TrainConfig c = tiny_quadrant();
+  Trainer t(c);
+  t.iterate();  // a normaliser that is not the identity
+  const nn::ActorCritic& net = t.net();
+  const nn::ObsShape& shape = net.config().obs;
+  const int G = c.envs * shape.max_agents;
+  const nn::ObsNormView view = t.obs_normalizer().view();
+  ASSERT_NE(view.mean[nn::kObsSelf][0], 0.0f);
+  const StepObsView step = StepObsView::of(t.sim().state());
+  ObsArrays normalised, raw;
+  normalised.allocate(shape, size_t(G));
+  raw.allocate(shape, size_t(G));
+  normalised.copy_step(step, shape, size_t(G), 0, &view);
+  raw.copy_step(step, shape, size_t(G), 0);
+  EXPECT_NE(std::memcmp(normalised.self.data(), raw.self.data(), sizeof(float) * normalised.self.size()), 0);
+  const int sw = net.state_width(), nh = net.heads().num_heads(), nl = net.heads().num_logits();
+  auto logits_of = [&](const ObsArrays& o, const nn::ObsNormView& v) {
+    std::vector<float> ps(size_t(G) * sw, 0.0f), vs = ps, logits(size_t(G) * nl);
+    const std::vector<float> uniforms(size_t(G) * nh, 0.5f);
+    std::vector<int32_t> actions(size_t(G) * nh);
+    net.act(v, o.batch(), G, ps.data(), vs.data(), uniforms.data(),
+            {actions.data(), nullptr, nullptr, logits.data()});
+    return logits;
+  };
+  EXPECT_EQ(logits_of(normalised, nn::ObsNormView::identity()), logits_of(raw, view));
 }
 
 TEST(Trainer, BitIdenticalForAnyThreadCount) {
