@@ -377,7 +377,8 @@ int run_train(const TrainOptions& opt) {
         "time split: simulate %.1f%% (of its thread time: physics %.0f%%, mirror %.0f%%, "
         "vision+lidar %.0f%%, observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, "
         "forward+backward %.1f%%, "
-        "optimizer %.1f%%, everything else %.1f%% (observation copies %.1f%%, targets and gathers %.1f%%, "
+        "optimizer %.1f%%, everything else %.1f%% (observations into the buffer %.1f%%, targets and row "
+        "lists %.1f%%, "
         "other %.1f%%)\n",
         totals.t_simulate * w, ph.physics * v, ph.mirror * v, ph.perception * v, ph.observations * v,
         ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
