@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include "batch/host.hpp"
 #include "cli.hpp"
 #include "nn/kernels.hpp"
 #include "physics/scene.hpp"
@@ -256,12 +257,17 @@ int run_train(const TrainOptions& opt) {
   write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
 
   const batch::Layout& L = trainer.sim().layout();
+  const std::string update =
+      cfg.minibatch_chunks > 0 ? "minibatches of at most " + std::to_string(cfg.minibatch_chunks) + " chunks"
+                               : std::to_string(cfg.minibatches) + " minibatches";
   std::printf(
       "hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
-      "%d epochs x %d minibatches, seed %llu, %s\n",
+      "%lld chunks of %d steps, %d epochs x %s, seed %llu, %s\n",
       cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
-      cfg.rollout_steps(), cfg.epochs, cfg.minibatches, static_cast<unsigned long long>(cfg.seed),
-      threads_text(cfg.threads).c_str());
+      cfg.rollout_steps(), static_cast<long long>(cfg.buffer_chunks()), cfg.bptt, cfg.epochs, update.c_str(),
+      static_cast<unsigned long long>(cfg.seed), threads_text(cfg.threads).c_str());
+  std::printf("  memory: about %.0f MiB estimated, %.0f MiB available\n",
+              double(cfg.estimated_bytes()) / (1 << 20), double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),

@@ -33,6 +33,7 @@ void visit_fields(Config& c, F&& f) {
   f("threads", c.threads, false);
   f("epochs", c.epochs, true);
   f("minibatches", c.minibatches, true);
+  f("minibatch_chunks", c.minibatch_chunks, true);
   f("bptt", c.bptt, true);
   f("grad_groups", c.grad_groups, true);
   f("lr", c.lr, true);
@@ -284,6 +285,12 @@ std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
   return result;
 }
 
+int TrainConfig::minibatches_for(int64_t chunks) const {
+  if (chunks <= 0) return 0;
+  const int64_t n = minibatch_chunks > 0 ? (chunks + minibatch_chunks - 1) / minibatch_chunks : minibatches;
+  return int(std::min<int64_t>(n, chunks));
+}
+
 physics::WorldConfig TrainConfig::world() const {
   physics::WorldConfig w = physics::world_preset(scene);
   if (horizon > 0) w.horizon = horizon;
@@ -313,7 +320,7 @@ size_t TrainConfig::estimated_bytes() const {
 }
 
 void TrainConfig::validate() const {
-  auto check = [](bool ok, const char* key, const auto& value, const char* allowed) {
+  auto check = [](bool ok, const char* key, const auto& value, std::string_view allowed) {
     if (!ok) throw ConfigError(field_error(key, text_of(value), allowed));
   };
   const physics::WorldConfig w = world();  // throws for an unknown scene
@@ -348,6 +355,10 @@ void TrainConfig::validate() const {
   const int64_t chunks = int64_t(envs) * (rollout_steps() / bptt);
   check(minibatches >= 1 && minibatches <= chunks, "minibatches", minibatches,
         "must be in [1, envs x rollout steps / bptt]");
+  check(
+      minibatch_chunks >= 0 && minibatch_chunks <= buffer_chunks(), "minibatch_chunks", minibatch_chunks,
+      "must be in [0, " + std::to_string(buffer_chunks()) +
+          "] (0 = use minibatches; at most the buffer's chunks: envs x agent slots x rollout steps / bptt)");
   check(lr > 0 && lr <= 1, "lr", lr, "must be in (0, 1]");
   check(clip > 0 && clip < 1, "clip", clip, "must be in (0, 1)");
   check(entropy_coef >= 0 && entropy_coef <= 10, "entropy_coef", entropy_coef, "must be in [0, 10]");

@@ -32,6 +32,9 @@ struct TrainConfig {
   // PPO (paper appendix B).
   int epochs = 4;       // passes over the rollout buffer per iteration
   int minibatches = 4;  // minibatches per epoch (each a set of BPTT chunks)
+  // Minibatch size in chunks, as the paper gives it (64,000 ten-step chunks): when > 0, each epoch is split
+  // into ceil(chunks / minibatch_chunks) equal minibatches and `minibatches` is not used; 0 = off.
+  int minibatch_chunks = 0;
   int bptt = 10;        // BPTT truncation: steps per chunk
   // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
   // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
@@ -62,6 +65,11 @@ struct TrainConfig {
   // The world this config trains on (preset with the horizon override).
   physics::WorldConfig world() const;
   int rollout_steps() const { return world().horizon * episodes_per_iteration; }
+  // BPTT chunks in the rollout buffer (every agent slot's; padding agents' chunks are left out of the
+  // update).
+  int64_t buffer_chunks() const { return int64_t(envs) * world().max_agents() * (rollout_steps() / bptt); }
+  // Minibatches per epoch for `chunks` chunks holding real agents.
+  int minibatches_for(int64_t chunks) const;
 
   // Sets one field from its text form ("epochs", "4"); throws ConfigError for an unknown key or bad value.
   void set(std::string_view key, std::string_view value);

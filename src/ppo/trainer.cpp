@@ -409,7 +409,7 @@ void Trainer::update(IterationMetrics& m) {
   }
   const int n_chunks = int(b.chunks.size());
   if (n_chunks == 0) return;
-  const int minibatches = std::min(cfg_.minibatches, n_chunks);
+  const int minibatches = cfg_.minibatches_for(n_chunks);
   const int max_seq = (n_chunks + minibatches - 1) / minibatches;
   if (b.mb_mask.size() < size_t(max_seq) * bptt) {  // grows only: the valid chunk count varies
     const size_t rows = size_t(max_seq) * bptt;

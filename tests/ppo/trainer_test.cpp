@@ -75,6 +75,31 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("grad_groups", "2000", "must be in [1, 1024]");
   rejects("colour", "red", "unknown key 'colour'");
   rejects("envs", "65536", "agent-step rows in the rollout buffer");  // 80 steps x 65536 envs x 6 slots
+  rejects("minibatch_chunks", "-1", "minibatch_chunks");
+  // The default buffer: 32 quadrant envs x 4 agent slots x 8 chunks of 10 steps.
+  rejects("minibatch_chunks", "1025", "must be in [0, 1024]");
+}
+
+// The paper sizes an update by its minibatch in chunks: minibatch_chunks splits each epoch into as many equal
+// minibatches as it takes; without it `minibatches` does, never into more minibatches than chunks.
+TEST(TrainConfig, MinibatchChunksSizesTheUpdate) {
+  TrainConfig c;
+  c.minibatches = 4;
+  EXPECT_EQ(c.buffer_chunks(), 1024);
+  EXPECT_EQ(c.minibatches_for(1024), 4);
+  EXPECT_EQ(c.minibatches_for(3), 3);
+  EXPECT_EQ(c.minibatches_for(0), 0);
+  c.minibatch_chunks = 300;
+  EXPECT_NO_THROW(c.validate());
+  EXPECT_EQ(c.minibatches_for(1024), 4);  // 256 chunks each
+  EXPECT_EQ(c.minibatches_for(900), 3);
+  EXPECT_EQ(c.minibatches_for(901), 4);
+  c.minibatch_chunks = 1024;
+  EXPECT_EQ(c.minibatches_for(1024), 1);
+  // It changes results: a checkpoint of another minibatch size is another run.
+  TrainConfig d = c;
+  d.minibatch_chunks = 512;
+  EXPECT_NE(c.identity_mismatch(d).find("minibatch_chunks"), std::string::npos);
 }
 
 TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
