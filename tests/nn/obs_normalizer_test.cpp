@@ -113,9 +113,9 @@ TEST(NnObsNormalizer, BlockSumsEqualOneUpdate) {
   }
   EXPECT_NE(whole.mean(kObsSelf, 0), 0.0);
   // Empty sums change nothing.
-  const double m = blocks.mean(kObsBoxes, 1);
+  const double m = blocks.mean(kObsBoxes, 0);
   blocks.apply(blocks.make_sums());
-  EXPECT_EQ(blocks.mean(kObsBoxes, 1), m);
+  EXPECT_EQ(blocks.mean(kObsBoxes, 0), m);
   EXPECT_EQ(blocks.debias(kObsBoxes), whole.debias(kObsBoxes));
 }
 
