@@ -132,10 +132,30 @@ void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, 
 
 void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
                                    const float* policy_state0, const float* value_state0, const LossFn& loss,
-                                   std::span<double> stats, float* grads_out) {
+                                   std::span<double> stats, float* grads_out,
+                                   std::span<const int> group_sequences) {
   const int chunk = par_.train_chunk_sequences;
-  const int num_chunks = (sequences + chunk - 1) / chunk;
-  const int groups = std::max(1, std::min(par_.grad_groups, num_chunks));
+  // The chunks, group by group.
+  chunks_.clear();
+  group_chunks_.assign(1, 0);
+  if (group_sequences.empty()) {
+    for (int s = 0; s < sequences; s += chunk) chunks_.push_back({s, std::min(chunk, sequences - s)});
+    const int n = static_cast<int>(chunks_.size());
+    const int groups = std::max(1, std::min(par_.grad_groups, n));
+    for (int g = 1; g <= groups; ++g) group_chunks_.push_back(static_cast<int>(int64_t(n) * g / groups));
+  } else {
+    HNS_NN_CHECK(
+        group_sequences.size() >= 2 && group_sequences.front() == 0 && group_sequences.back() == sequences,
+        "group_sequences must run from 0 to the sequence count");
+    for (size_t g = 0; g + 1 < group_sequences.size(); ++g) {
+      HNS_NN_CHECK(group_sequences[g] <= group_sequences[g + 1], "group_sequences must not decrease");
+      for (int s = group_sequences[g]; s < group_sequences[g + 1]; s += chunk)
+        chunks_.push_back({s, std::min(chunk, group_sequences[g + 1] - s)});
+      group_chunks_.push_back(static_cast<int>(chunks_.size()));
+    }
+  }
+  const int num_chunks = static_cast<int>(chunks_.size());
+  const int groups = static_cast<int>(group_chunks_.size()) - 1;
   const size_t nfloats = params_.buffer_floats();
   const size_t nstats = stats.size();
   const int sw = state_width();
@@ -150,11 +170,9 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
     ThreadWork& w = local_work(train_work_, chunk, steps);
     float* gg = group_grads_[g].data();
     group_grads_[g].fill_zero();
-    const int c_begin = static_cast<int>(static_cast<int64_t>(num_chunks) * g / groups);
-    const int c_end = static_cast<int>(static_cast<int64_t>(num_chunks) * (g + 1) / groups);
-    for (int c = c_begin; c < c_end; ++c) {
-      const int first_seq = c * chunk;
-      const int n = std::min(chunk, sequences - first_seq);
+    for (int c = group_chunks_[g]; c < group_chunks_[g + 1]; ++c) {
+      const int first_seq = chunks_[c].first_seq;
+      const int n = chunks_[c].sequences;
       const int first_row = first_seq * steps;
       const int rows = n * steps;
       const ObsBatch sub = obs.rows_from(first_row, cfg_.obs);

@@ -117,9 +117,14 @@ class ActorCritic {
   // sequence-major, row = b * steps + t). policy_state0, value_state0 [sequences, state_width()]: the states
   // entering step 0 (null: zeros). Writes the summed gradients to grads_out (a buffer of
   // params().buffer_floats(); may be params().grads()) and the chunk-summed loss statistics to stats.
+  // Gradient groups: by default the chunks are split into min(grad_groups, chunks) contiguous groups; with
+  // group_sequences ([groups + 1], non-decreasing, from 0 to `sequences`) group g is sequences
+  // [group_sequences[g], group_sequences[g + 1]) (possibly none), cut into chunks from its own start. Either
+  // way each group sums its chunks in order, the groups are summed in group order, and the statistics are
+  // summed in chunk order (group by group).
   void forward_backward(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
                         const float* policy_state0, const float* value_state0, const LossFn& loss,
-                        std::span<double> stats, float* grads_out);
+                        std::span<double> stats, float* grads_out, std::span<const int> group_sequences = {});
 
  private:
   struct ThreadWork;
@@ -137,7 +142,12 @@ class ActorCritic {
   // Packs both LSTMs' recurrent kernels for the current params (the forward's only, or both).
   void pack_lstms(bool for_backward) const;
 
-  std::vector<FloatBuffer> group_grads_;  // [grad_groups][buffer_floats]
+  std::vector<FloatBuffer> group_grads_;  // [groups][buffer_floats]
+  struct Chunk {
+    int first_seq = 0, sequences = 0;
+  };
+  std::vector<Chunk> chunks_;      // of the current forward_backward, group by group
+  std::vector<int> group_chunks_;  // [groups + 1] chunk ranges of the groups
   // The LSTMs' recurrent kernels packed once per act() or forward_backward() call (the params do not change
   // during one), shared by every chunk: [policy, value], each two packed_floats() (W_h, W_h^T).
   mutable FloatBuffer lstm_packed_buf_[2];

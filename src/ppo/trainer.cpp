@@ -77,7 +77,11 @@ struct Trainer::Buffers {
   nn::FloatBuffer mb_logp, mb_adv, mb_ret;
   std::vector<uint8_t> mb_mask;
   nn::FloatBuffer mb_state_p, mb_state_v;
-  std::vector<int32_t> chunks;         // valid chunk ids c * G + g
+  // Update blocks (gradient groups): block k holds envs [E k / K, E (k + 1) / K) and their valid chunk ids
+  // c * G + g, shuffled per epoch; a minibatch takes an equal share of every block, block by block.
+  std::vector<std::vector<int32_t>> block_chunks;  // [K][its valid chunks]
+  std::vector<int32_t> mb_chunks;                  // the current minibatch's chunk ids, block by block
+  std::vector<int> mb_groups;                      // [K + 1] its sequence ranges per block
   std::vector<int32_t> episode_start;  // [E] rollout step at which each env's current episode started
   // Observation normaliser sums of the rollout's real agent-steps: per env those of its current episode,
   // added to the rollout's when the episode ends (dropped if it is discarded for numerical trouble, like
@@ -398,19 +402,30 @@ void Trainer::update(IterationMetrics& m) {
   const int sw = net_->state_width();
   const int chunks_per_row = T / bptt;
 
-  // Chunks holding at least one real agent-step.
-  b.chunks.clear();
-  for (int c = 0; c < chunks_per_row; ++c) {
-    for (int g = 0; g < G; ++g) {
-      bool any = false;
-      for (int j = 0; j < bptt && !any; ++j) any = b.mask[size_t(c * bptt + j) * G + g] != 0;
-      if (any) b.chunks.push_back(c * G + g);
+  // Chunks holding at least one real agent-step, per update block of envs (the gradient groups: each block's
+  // share of a minibatch is summed in order, the blocks in block order).
+  const int E = cfg_.envs, A = G / E;
+  const int K = std::min(cfg_.grad_groups, E);
+  b.block_chunks.resize(size_t(K));
+  int n_chunks = 0;
+  for (int k = 0; k < K; ++k) {
+    std::vector<int32_t>& list = b.block_chunks[size_t(k)];
+    list.clear();
+    const int g0 = int(int64_t(E) * k / K) * A, g1 = int(int64_t(E) * (k + 1) / K) * A;
+    for (int c = 0; c < chunks_per_row; ++c) {
+      for (int g = g0; g < g1; ++g) {
+        bool any = false;
+        for (int j = 0; j < bptt && !any; ++j) any = b.mask[size_t(c * bptt + j) * G + g] != 0;
+        if (any) list.push_back(c * G + g);
+      }
     }
+    n_chunks += int(list.size());
   }
-  const int n_chunks = int(b.chunks.size());
   if (n_chunks == 0) return;
   const int minibatches = cfg_.minibatches_for(n_chunks);
-  const int max_seq = (n_chunks + minibatches - 1) / minibatches;
+  int max_seq = 0;
+  for (const std::vector<int32_t>& list : b.block_chunks)
+    max_seq += (int(list.size()) + minibatches - 1) / minibatches;
   if (b.mb_mask.size() < size_t(max_seq) * bptt) {  // grows only: the valid chunk count varies
     const size_t rows = size_t(max_seq) * bptt;
     b.mb_index.assign(rows, 0);
@@ -433,17 +448,28 @@ void Trainer::update(IterationMetrics& m) {
   int updates = 0;
 
   for (int epoch = 0; epoch < cfg_.epochs; ++epoch) {
-    physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_), uint64_t(epoch));
-    for (int i = n_chunks - 1; i > 0; --i) std::swap(b.chunks[i], b.chunks[rng.uniform_int(0, i + 1)]);
+    for (int k = 0; k < K; ++k) {
+      std::vector<int32_t>& list = b.block_chunks[size_t(k)];
+      physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_),
+                       (uint64_t(epoch) << 32) | uint64_t(k));
+      for (int i = int(list.size()) - 1; i > 0; --i) std::swap(list[i], list[rng.uniform_int(0, i + 1)]);
+    }
     for (int mb = 0; mb < minibatches; ++mb) {
-      const int k0 = int(int64_t(n_chunks) * mb / minibatches);
-      const int k1 = int(int64_t(n_chunks) * (mb + 1) / minibatches);
-      const int S = k1 - k0;
+      // Block k's share: its chunks [n_k mb / M, n_k (mb + 1) / M).
+      b.mb_chunks.clear();
+      b.mb_groups.assign(1, 0);
+      for (const std::vector<int32_t>& list : b.block_chunks) {
+        const int64_t n = int64_t(list.size());
+        b.mb_chunks.insert(b.mb_chunks.end(), list.begin() + n * mb / minibatches,
+                           list.begin() + n * (mb + 1) / minibatches);
+        b.mb_groups.push_back(int(b.mb_chunks.size()));
+      }
+      const int S = int(b.mb_chunks.size());
       // The chunks' rows, sequence-major; their targets and entering states gathered.
       const Clock::time_point t_gather = Clock::now();
       tbb::parallel_for(tbb::blocked_range<int>(0, S, 8), [&](const tbb::blocked_range<int>& r) {
         for (int k = r.begin(); k < r.end(); ++k) {
-          const int id = b.chunks[k0 + k];
+          const int id = b.mb_chunks[size_t(k)];
           const int c = id / G, g = id % G;
           std::memcpy(b.mb_state_p.data() + size_t(k) * sw, b.state_p.data() + (size_t(c) * G + g) * sw,
                       sizeof(float) * sw);
@@ -485,7 +511,7 @@ void Trainer::update(IterationMetrics& m) {
       double st[kNumStats] = {};
       float* grads = net_->params().grads();
       net_->forward_backward(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(),
-                             b.mb_state_v.data(), loss, std::span<double>(st, kNumStats), grads);
+                             b.mb_state_v.data(), loss, std::span<double>(st, kNumStats), grads, b.mb_groups);
       m.t_backward += seconds_since(tp);
       tp = mark("forward+backward", tp);
       const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);

@@ -6,7 +6,8 @@
 //             BatchSim::step; the LSTM states entering every BPTT chunk are kept
 //   targets   windowed GAE and TD(λ) returns per agent row, value-target normaliser update, advantages
 //             z-scored over the buffer
-//   update    epochs x minibatches of shuffled BPTT chunks: clipped surrogate + value loss - entropy bonus,
+//   update    epochs x minibatches of shuffled BPTT chunks, stratified by blocks of envs (each block's share
+//             of a minibatch one gradient group): clipped surrogate + value loss - entropy bonus,
 //             global-norm clip, Adam
 //   stats     observation normaliser update (after the update, so rollout and update see the same one)
 //

@@ -322,6 +322,52 @@ TEST(NnNetwork, IndexedNormalisedRowsEqualContiguousRawRows) {
   EXPECT_EQ(a1, a2);
 }
 
+// Gradient groups given by the caller (the trainer's blocks of envs): each group's chunks start at the
+// group's first sequence, and the result is the groups' own gradients summed in group order, an empty group
+// included, to the bit.
+TEST(NnNetwork, ExplicitGroupsSumTheirGradientsInGroupOrder) {
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 2;
+  par.grad_groups = 1;  // the reference calls below: one group each
+  ActorCritic ac(cfg, par);
+  ac.params().init(12);
+  const int seqs = 9, steps = 2;
+  const ObsData data(cfg.obs, seqs * steps, 500);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, seqs * steps);
+  const std::vector<int> groups = {0, 3, 3, 8, 9};
+  std::vector<float> grads(ac.params().buffer_floats());
+  const int nl = ac.heads().num_logits();
+  std::vector<float> logits(static_cast<size_t>(seqs) * steps * nl);
+  auto loss_at = [&](int row0) {
+    return [&, row0](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+      for (int r = 0; r < out.rows; ++r) {
+        for (int k = 0; k < nl; ++k) {
+          logits[(row0 + out.first_row + r) * nl + k] = out.logits.at(r, k);
+          g.d_logits.at(r, k) = 0.02f * static_cast<float>(k) - 0.1f;
+        }
+        g.d_value[r] = -0.4f;
+      }
+    };
+  };
+  std::vector<double> stats;
+  ac.forward_backward(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss_at(0), stats,
+                      grads.data(), groups);
+  const std::vector<float> logits_grouped = logits;
+  std::vector<float> sum(grads.size(), 0.0f), one(grads.size());
+  for (size_t g = 0; g + 1 < groups.size(); ++g) {
+    const int s0 = groups[g], n = groups[g + 1] - groups[g];
+    ac.forward_backward(norm.view(), data.batch().rows_from(static_cast<size_t>(s0) * steps, cfg.obs), n,
+                        steps, nullptr, nullptr, loss_at(s0 * steps), stats, one.data());
+    for (size_t i = 0; i < sum.size(); ++i) sum[i] = g == 0 ? one[i] : sum[i] + one[i];
+  }
+  EXPECT_TRUE(same_bits(grads.data(), sum.data(), sum.size()));
+  EXPECT_EQ(logits_grouped, logits);
+  EXPECT_THROW(ac.forward_backward(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss_at(0),
+                                   stats, grads.data(), std::vector<int>{0, 5, 4, 9}),
+               std::logic_error);
+}
+
 TEST(NnNetwork, ChunkOfTenStepsEqualsTenActSteps) {
   NetConfig cfg = net_preset("small");
   ParallelConfig par;
