@@ -84,6 +84,7 @@ void BatchConfig::validate() const {
   check(num_envs >= 1 && num_envs <= (1 << 22), "envs", num_envs, "must be in [1, 4194304]");
   check(threads >= 1 && threads <= 4096, "threads", threads, "must be in [1, 4096]");
   check(envs_per_task >= 1, "envs_per_task", envs_per_task, "must be >= 1");
+  check(first_env >= 0, "first_env", first_env, "must be >= 0");
 }
 
 void BatchState::allocate(const Layout& L, int num_envs) {
@@ -136,7 +137,8 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
   state_.allocate(layout_, config_.num_envs);
   worlds_.reserve(config_.num_envs);
   for (int e = 0; e < config_.num_envs; ++e) {
-    worlds_.push_back(std::make_unique<physics::World>(config_.world, config_.seed, uint64_t(e)));
+    worlds_.push_back(std::make_unique<physics::World>(config_.world, config_.seed,
+                                                       uint64_t(config_.first_env) + uint64_t(e)));
   }
   scratch_.resize(config_.num_envs);
   arena_ = std::make_unique<tbb::task_arena>(config_.threads);

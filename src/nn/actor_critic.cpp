@@ -134,6 +134,31 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
                                    const float* policy_state0, const float* value_state0, const LossFn& loss,
                                    std::span<double> stats, float* grads_out,
                                    std::span<const int> group_sequences) {
+  compute_groups(norm, obs, sequences, steps, policy_state0, value_state0, loss, stats.size(),
+                 group_sequences);
+  // Each element independently, so any split of the index range gives the same bits.
+  tbb::parallel_for(
+      tbb::blocked_range<size_t>(0, params_.buffer_floats(), 1 << 14),
+      [&](const tbb::blocked_range<size_t>& r) { sum_groups(r.begin(), r.end(), nullptr, grads_out); });
+  const size_t nstats = stats.size();
+  for (size_t k = 0; k < nstats; ++k) stats[k] = 0.0;
+  if (nstats == 0) return;
+  for (size_t c = 0; c < chunk_stats_.size() / nstats; ++c)
+    for (size_t k = 0; k < nstats; ++k) stats[k] += chunk_stats_[c * nstats + k];
+}
+
+void ActorCritic::sum_groups(size_t begin, size_t end, const float* before, float* out) const {
+  const int groups = static_cast<int>(group_chunks_.size()) - 1;
+  for (size_t i = begin; i < end; ++i) {
+    float s = before != nullptr ? before[i - begin] + group_grads_[0][i] : group_grads_[0][i];
+    for (int g = 1; g < groups; ++g) s += group_grads_[g][i];
+    out[i] = s;
+  }
+}
+
+void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
+                                 const float* policy_state0, const float* value_state0, const LossFn& loss,
+                                 size_t nstats, std::span<const int> group_sequences) {
   const int chunk = par_.train_chunk_sequences;
   // The chunks, group by group.
   chunks_.clear();
@@ -157,7 +182,6 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
   const int num_chunks = static_cast<int>(chunks_.size());
   const int groups = static_cast<int>(group_chunks_.size()) - 1;
   const size_t nfloats = params_.buffer_floats();
-  const size_t nstats = stats.size();
   const int sw = state_width();
   const int nl = heads_.num_logits();
   while (group_grads_.size() < static_cast<size_t>(groups)) group_grads_.emplace_back(nfloats);
@@ -193,20 +217,6 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
       value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
     }
   });
-
-  // Sum the groups in order (each element independently, so any split of the index range gives the same
-  // bits).
-  tbb::parallel_for(tbb::blocked_range<size_t>(0, nfloats, 1 << 14),
-                    [&](const tbb::blocked_range<size_t>& r) {
-                      for (size_t i = r.begin(); i < r.end(); ++i) {
-                        float s = group_grads_[0][i];
-                        for (int g = 1; g < groups; ++g) s += group_grads_[g][i];
-                        grads_out[i] = s;
-                      }
-                    });
-  for (size_t k = 0; k < nstats; ++k) stats[k] = 0.0;
-  for (int c = 0; c < num_chunks; ++c)
-    for (size_t k = 0; k < nstats; ++k) stats[k] += chunk_stats_[static_cast<size_t>(c) * nstats + k];
 }
 
 }  // namespace hns::nn

@@ -125,6 +125,15 @@ class ActorCritic {
   void forward_backward(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
                         const float* policy_state0, const float* value_state0, const LossFn& loss,
                         std::span<double> stats, float* grads_out, std::span<const int> group_sequences = {});
+  // The same in two parts, for a sum that goes on in other processes: compute_groups() leaves every group's
+  // gradient and every chunk's statistics (`nstats` each) here; sum_groups() writes out[i] = before[i -
+  // begin] (or nothing if null) + group 0 + group 1 + ... in that order, for i in [begin, end).
+  void compute_groups(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
+                      const float* policy_state0, const float* value_state0, const LossFn& loss,
+                      size_t nstats, std::span<const int> group_sequences = {});
+  void sum_groups(size_t begin, size_t end, const float* before, float* out) const;
+  // [chunks, nstats] of the last compute_groups(), chunk by chunk (group by group).
+  std::span<const double> chunk_stats() const { return chunk_stats_; }
 
  private:
   struct ThreadWork;

@@ -35,7 +35,10 @@ void zscore(std::span<float> x, std::span<const uint8_t> mask, float eps) {
   }
   if (n == 0) return;
   const double mean = sum / n;
-  const double std = std::sqrt(std::max(0.0, sum_sq / n - mean * mean));
+  zscore_with(x, mask, mean, std::sqrt(std::max(0.0, sum_sq / n - mean * mean)), eps);
+}
+
+void zscore_with(std::span<float> x, std::span<const uint8_t> mask, double mean, double std, float eps) {
   for (size_t i = 0; i < x.size(); ++i) x[i] = mask[i] != 0 ? float((x[i] - mean) / (std + eps)) : 0.0f;
 }
 

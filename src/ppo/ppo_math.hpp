@@ -24,6 +24,10 @@ void gae_window(std::span<const float> rewards, std::span<const float> values, s
 
 // Z-scores x in place over the entries with mask 1 (mean 0, standard deviation 1; eps guards a constant x).
 void zscore(std::span<float> x, std::span<const uint8_t> mask, float eps = 1e-8f);
+// The same with the mean and standard deviation given (taken over more entries than x holds): x = (x - mean)
+// / (std + eps) where mask is 1, else 0.
+void zscore_with(std::span<float> x, std::span<const uint8_t> mask, double mean, double std,
+                 float eps = 1e-8f);
 
 struct PolicyLossStats {
   double loss = 0;  // -mean(min(l·A, clip(l, 1-ε, 1+ε)·A))

@@ -68,6 +68,8 @@ struct TrainConfig {
   // BPTT chunks in the rollout buffer (every agent slot's; padding agents' chunks are left out of the
   // update).
   int64_t buffer_chunks() const { return int64_t(envs) * world().max_agents() * (rollout_steps() / bptt); }
+  // Blocks of envs of the update (gradient groups; the unit a process of a data-parallel run owns).
+  int update_blocks() const { return grad_groups < envs ? grad_groups : envs; }
   // Minibatches per epoch for `chunks` chunks holding real agents.
   int minibatches_for(int64_t chunks) const;
 

@@ -31,6 +31,8 @@ constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
 constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
 
 constexpr int kNumStats = kNumPpoStats;
+// Per update block: episodes, then the sums of hider and seeker returns and of the eight SPEC §7 statistics.
+constexpr int kBlockEpisodeValues = 11;
 
 float uniform_float(physics::Rng& rng) {
   return float(rng.next_u64() >> 40) * 0x1.0p-24f;
@@ -82,12 +84,17 @@ struct Trainer::Buffers {
   std::vector<std::vector<int32_t>> block_chunks;  // [K][its valid chunks]
   std::vector<int32_t> mb_chunks;                  // the current minibatch's chunk ids, block by block
   std::vector<int> mb_groups;                      // [K + 1] its sequence ranges per block
-  std::vector<int32_t> episode_start;  // [E] rollout step at which each env's current episode started
+  std::vector<double> all_chunk_stats;             // every rank's chunk statistics of the minibatch
+  std::vector<int32_t> episode_start;  // [this rank's envs] rollout step at which its current episode started
   // Observation normaliser sums of the rollout's real agent-steps: per env those of its current episode,
-  // added to the rollout's when the episode ends (dropped if it is discarded for numerical trouble, like
-  // every other statistic of such an episode), the open ones at the end of the rollout in env order.
-  nn::ObsNormalizer::Sums obs_sums;
-  std::vector<nn::ObsNormalizer::Sums> episode_obs_sums;         // [E]
+  // added to its block's when the episode ends (dropped if it is discarded for numerical trouble, like every
+  // other statistic of such an episode), the open ones at the end of the rollout in env order; the blocks'
+  // are merged in block order (across ranks).
+  std::vector<nn::ObsNormalizer::Sums> block_obs_sums;    // [this rank's blocks]
+  std::vector<nn::ObsNormalizer::Sums> episode_obs_sums;  // [this rank's envs]
+  // Per block of this rank: episodes that ended, then the sums of their hider and seeker returns and of the
+  // eight SPEC §7 statistics (kBlockEpisodeValues doubles each).
+  std::vector<double> block_episodes;
   tbb::enumerable_thread_specific<PpoLossScratch> loss_scratch;  // per thread
 };
 
@@ -115,11 +122,29 @@ std::string IterationMetrics::to_json() const {
   return buf;
 }
 
-Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_unique<Buffers>()) {
+Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std::make_unique<Buffers>()) {
   cfg_.validate();
+  if (comm == nullptr) {
+    own_comm_ = std::make_unique<SingleProcess>();
+    comm = own_comm_.get();
+  }
+  comm_ = comm;
+  blocks_ = cfg_.update_blocks();
+  const int R = comm_->size(), r = comm_->rank();
+  if (R > blocks_) {
+    throw physics::ConfigError(
+        std::to_string(R) + " ranks for " + std::to_string(blocks_) +
+        " update blocks (min(grad_groups, envs)): every rank needs a block of envs of its own; use at most " +
+        std::to_string(blocks_) + " ranks or raise grad_groups (and envs)");
+  }
+  block0_ = int(int64_t(blocks_) * r / R);
+  block1_ = int(int64_t(blocks_) * (r + 1) / R);
+  env0_ = block_env(block0_);
+  env1_ = block_env(block1_);
   batch::BatchConfig bc;
   bc.world = cfg_.world();
-  bc.num_envs = cfg_.envs;
+  bc.num_envs = env1_ - env0_;
+  bc.first_env = env0_;
   bc.threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
   bc.seed = cfg_.seed;
   sim_ = std::make_unique<batch::BatchSim>(bc);
@@ -139,7 +164,7 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
   obs_norm_ = std::make_unique<nn::ObsNormalizer>(nc.obs);
 
   rollout_steps_ = cfg_.rollout_steps();
-  rows_ = cfg_.envs * L.max_agents;
+  rows_ = (env1_ - env0_) * L.max_agents;
   const size_t T = size_t(rollout_steps_), G = size_t(rows_), TG = T * G;
   const int heads = net_->heads().num_heads();
   const int sw = net_->state_width();
@@ -156,9 +181,9 @@ Trainer::Trainer(const TrainConfig& config) : cfg_(config), buf_(std::make_uniqu
   b.cur_v.resize(G * sw);
   b.uniforms.resize(G * heads);
   b.env_actions.resize(G);
-  b.episode_start.assign(size_t(cfg_.envs), 0);
-  b.obs_sums = obs_norm_->make_sums();
-  b.episode_obs_sums.assign(size_t(cfg_.envs), b.obs_sums);
+  b.episode_start.assign(size_t(env1_ - env0_), 0);
+  b.block_obs_sums.assign(size_t(block1_ - block0_), obs_norm_->make_sums());
+  b.episode_obs_sums.assign(size_t(env1_ - env0_), obs_norm_->make_sums());
   next_episode_.assign(cfg_.envs, 0);
 }
 
@@ -187,8 +212,40 @@ Clock::time_point Trainer::mark(const char* phase, Clock::time_point begin) {
   return now;
 }
 
+void Trainer::apply_obs_sums(IterationMetrics& m) {
+  // Every block's sums (rows, then sum and square per feature, key by key), in block order across ranks.
+  std::vector<double> mine, all;
+  for (const nn::ObsNormalizer::Sums& k : buf_->block_obs_sums) {
+    for (int key = 0; key < nn::kNumObsKeys; ++key) {
+      mine.push_back(double(k.rows[size_t(key)]));
+      mine.insert(mine.end(), k.sum[size_t(key)].begin(), k.sum[size_t(key)].end());
+      mine.insert(mine.end(), k.sq[size_t(key)].begin(), k.sq[size_t(key)].end());
+    }
+  }
+  const Clock::time_point tc = Clock::now();
+  comm_->allgather(mine, all);
+  m.t_comm += seconds_since(tc);
+  nn::ObsNormalizer::Sums total = obs_norm_->make_sums(), block = total;
+  for (size_t at = 0; at < all.size();) {
+    for (int key = 0; key < nn::kNumObsKeys; ++key) {
+      const size_t f = block.sum[size_t(key)].size();
+      block.rows[size_t(key)] = int64_t(all[at++]);
+      std::copy_n(all.begin() + ptrdiff_t(at), f, block.sum[size_t(key)].begin());
+      at += f;
+      std::copy_n(all.begin() + ptrdiff_t(at), f, block.sq[size_t(key)].begin());
+      at += f;
+    }
+    total.merge(block);
+  }
+  obs_norm_->apply(total);
+}
+
+int Trainer::block_env(int k) const {
+  return int(int64_t(cfg_.envs) * k / blocks_);
+}
+
 void Trainer::restart_envs() {
-  sim_->reset(next_episode_);
+  sim_->reset(std::span<const int32_t>(next_episode_).subspan(size_t(env0_), size_t(env1_ - env0_)));
   need_restart_ = false;
 }
 
@@ -211,7 +268,7 @@ IterationMetrics Trainer::iterate() {
     // The observation statistics (summed during the rollout) move after the update, so that a rollout and
     // the update of its data see the same normalisation.
     const Clock::time_point t_obs = Clock::now();
-    obs_norm_->apply(buf_->obs_sums);
+    apply_obs_sums(m);
     m.t_observe += seconds_since(t_obs);
     mark("observation normaliser", t_obs);
   });
@@ -221,7 +278,7 @@ IterationMetrics Trainer::iterate() {
   m.env_steps = env_steps_;
   m.value_mean = value_norm_.mean();
   m.value_std = value_norm_.std();
-  m.unstable_resets = sim_->unstable_resets() - unstable_before;
+  m.unstable_resets = comm_->sum(sim_->unstable_resets() - unstable_before);
   m.seconds = seconds_since(t0);
   m.t_other = std::max(0.0, m.seconds - m.t_simulate - m.t_observe - m.t_infer - m.t_learn);
   m.steps_per_s = m.seconds > 0 ? double(agent_steps_ - agent_steps_before) / m.seconds : 0.0;
@@ -232,19 +289,23 @@ void Trainer::rollout(IterationMetrics& m) {
   Buffers& b = *buf_;
   const batch::Layout& L = sim_->layout();
   const nn::ObsShape& shape = net_->config().obs;
-  const int T = rollout_steps_, G = rows_, A = L.max_agents, E = cfg_.envs;
+  // E: this rank's envs (env e here is env env0_ + e of the run).
+  const int T = rollout_steps_, G = rows_, A = L.max_agents, E = env1_ - env0_;
   const int heads = net_->heads().num_heads();
   const int sw = net_->state_width();
   const nn::ObsNormView norm = obs_norm_->view();
   const double vmean = value_norm_.mean(), vstd = value_norm_.std();
   b.cur_p.fill_zero();
   b.cur_v.fill_zero();
-  double sum_hider = 0, sum_seeker = 0;
-  double stat_sums[8] = {};
-  int episodes = 0;
+  const int nblocks = block1_ - block0_;
+  b.block_episodes.assign(size_t(nblocks) * kBlockEpisodeValues, 0.0);
+  // The local block of local env e.
+  std::vector<int> block_of(static_cast<size_t>(E), 0);
+  for (int k = block0_; k < block1_; ++k)
+    for (int e = block_env(k); e < block_env(k + 1); ++e) block_of[size_t(e - env0_)] = k - block0_;
   int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
   std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
-  b.obs_sums.clear();
+  for (nn::ObsNormalizer::Sums& k : b.block_obs_sums) k.clear();
   for (nn::ObsNormalizer::Sums& e : b.episode_obs_sums) e.clear();
   const size_t na = size_t(shape.num_other_agents());
   const size_t per_agent[5] = {size_t(shape.self_features), size_t(shape.lidar_rays),
@@ -277,7 +338,9 @@ void Trainer::rollout(IterationMetrics& m) {
       std::memcpy(b.state_p.data() + c * G * sw, b.cur_p.data(), sizeof(float) * G * sw);
       std::memcpy(b.state_v.data() + c * G * sw, b.cur_v.data(), sizeof(float) * G * sw);
     }
+    // The run's stream of uniforms for this step, env by env: this rank's share of it.
     physics::Rng rng(cfg_.seed ^ kActionStream, uint64_t(iteration_), uint64_t(t));
+    for (int64_t i = 0; i < int64_t(env0_) * A * heads; ++i) (void)rng.next_u64();
     for (int i = 0; i < G * heads; ++i) b.uniforms[i] = uniform_float(rng);
     m.t_observe += seconds_since(tp);
     tp = mark("observe", tp);
@@ -312,7 +375,8 @@ void Trainer::rollout(IterationMetrics& m) {
     for (const batch::EpisodeStats& st : sim_->finished()) {
       const int first = b.episode_start[st.env];
       b.episode_start[st.env] = t + 1;
-      if (!st.discarded) b.obs_sums.merge(b.episode_obs_sums[st.env]);
+      const int blk = block_of[size_t(st.env)];
+      if (!st.discarded) b.block_obs_sums[size_t(blk)].merge(b.episode_obs_sums[st.env]);
       b.episode_obs_sums[st.env].clear();
       if (st.discarded) {
         // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
@@ -322,37 +386,57 @@ void Trainer::rollout(IterationMetrics& m) {
         }
         continue;
       }
-      ++episodes;
-      sum_hider += st.hider_return;
-      sum_seeker += st.seeker_return;
-      const float v[8] = {st.max_box_move_prep,  st.num_box_lock_prep, st.max_ramp_move_prep,
-                          st.num_ramp_lock_prep, st.max_box_move,      st.num_box_lock,
-                          st.max_ramp_move,      st.num_ramp_lock};
-      for (int k = 0; k < 8; ++k) stat_sums[k] += v[k];
+      const float v[kBlockEpisodeValues] = {1.0f,
+                                            st.hider_return,
+                                            st.seeker_return,
+                                            st.max_box_move_prep,
+                                            st.num_box_lock_prep,
+                                            st.max_ramp_move_prep,
+                                            st.num_ramp_lock_prep,
+                                            st.max_box_move,
+                                            st.num_box_lock,
+                                            st.max_ramp_move,
+                                            st.num_ramp_lock};
+      double* sums = b.block_episodes.data() + size_t(blk) * kBlockEpisodeValues;
+      for (int k = 0; k < kBlockEpisodeValues; ++k) sums[k] += v[k];
     }
     m.t_observe += seconds_since(tp);
     mark("observe", tp);
   }
 
-  for (const nn::ObsNormalizer::Sums& e : b.episode_obs_sums) b.obs_sums.merge(e);
+  for (int e = 0; e < E; ++e)
+    b.block_obs_sums[size_t(block_of[size_t(e)])].merge(b.episode_obs_sums[size_t(e)]);
 
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
-  // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh.
+  // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh. Every
+  // rank learns every env's next episode (the checkpoint holds them all).
+  const Clock::time_point tc = Clock::now();
   const batch::BatchState& s = sim_->state();
+  std::vector<double> mine(static_cast<size_t>(E), 0.0), all;
+  bool restart = false;
   for (int e = 0; e < E; ++e) {
-    next_episode_[e] = s.episode[e] + (s.step_count[e] != 0 ? 1 : 0);
-    need_restart_ = need_restart_ || s.step_count[e] != 0;
+    mine[size_t(e)] = double(s.episode[e] + (s.step_count[e] != 0 ? 1 : 0));
+    restart = restart || s.step_count[e] != 0;
   }
-  agent_steps_ += simulated;
-  env_steps_ += int64_t(T) * E;
-  m.episodes = episodes;
+  comm_->allgather(mine, all);
+  for (int e = 0; e < cfg_.envs; ++e) next_episode_[size_t(e)] = int32_t(all[size_t(e)]);
+  need_restart_ = comm_->any(restart) || need_restart_;
+  agent_steps_ += comm_->sum(simulated);
+  env_steps_ += int64_t(T) * cfg_.envs;
+  // Episode statistics: the blocks' sums in block order.
+  comm_->allgather(b.block_episodes, all);
+  double totals[kBlockEpisodeValues] = {};
+  for (size_t k = 0; k < all.size(); k += kBlockEpisodeValues)
+    for (int j = 0; j < kBlockEpisodeValues; ++j) totals[j] += all[k + size_t(j)];
+  m.t_comm += seconds_since(tc);
+  const double episodes = totals[0];
+  m.episodes = int(episodes);
   if (episodes > 0) {
-    m.hider_reward = sum_hider / episodes;
-    m.seeker_reward = sum_seeker / episodes;
-    double* dst[8] = {&m.max_box_move_prep,  &m.num_box_lock_prep, &m.max_ramp_move_prep,
-                      &m.num_ramp_lock_prep, &m.max_box_move,      &m.num_box_lock,
-                      &m.max_ramp_move,      &m.num_ramp_lock};
-    for (int k = 0; k < 8; ++k) *dst[k] = stat_sums[k] / episodes;
+    double* dst[kBlockEpisodeValues - 1] = {
+        &m.hider_reward,       &m.seeker_reward,      &m.max_box_move_prep, &m.num_box_lock_prep,
+        &m.max_ramp_move_prep, &m.num_ramp_lock_prep, &m.max_box_move,      &m.num_box_lock,
+        &m.max_ramp_move,      &m.num_ramp_lock};
+    for (int k = 1; k < kBlockEpisodeValues; ++k) *dst[k - 1] = totals[k] / episodes;
   }
 }
 
@@ -379,20 +463,46 @@ void Trainer::compute_targets(IterationMetrics& m) {
       }
     }
   });
-  const size_t TG = size_t(T) * G;
-  m.explained_variance = explained_variance(b.value.span(), b.ret.span(), b.mask);
-  double sum = 0, sq = 0;
-  int64_t n = 0;
-  for (size_t i = 0; i < TG; ++i) {
-    if (b.mask[i] == 0) continue;
-    sum += b.ret[i];
-    sq += double(b.ret[i]) * b.ret[i];
-    ++n;
+  // Moments over the real agent-steps, per update block (its rows step by step, agent row by agent row), then
+  // the blocks' in block order: n, returns and their squares, residuals (return - value) and their squares,
+  // advantages and their squares.
+  constexpr int kMoments = 7;
+  const int A = G / (env1_ - env0_);
+  std::vector<double> mine(size_t(block1_ - block0_) * kMoments, 0.0), all;
+  for (int k = block0_; k < block1_; ++k) {
+    double* mo = mine.data() + size_t(k - block0_) * kMoments;
+    const int g0 = (block_env(k) - env0_) * A, g1 = (block_env(k + 1) - env0_) * A;
+    for (int t = 0; t < T; ++t) {
+      for (int g = g0; g < g1; ++g) {
+        const size_t i = size_t(t) * G + g;
+        if (b.mask[i] == 0) continue;
+        const double ret = b.ret[i], res = double(b.ret[i]) - double(b.value[i]), adv = b.adv[i];
+        mo[0] += 1, mo[1] += ret, mo[2] += ret * ret, mo[3] += res, mo[4] += res * res;
+        mo[5] += adv, mo[6] += adv * adv;
+      }
+    }
   }
-  if (n > 0) value_norm_.update(sum / n, sq / n);
+  const Clock::time_point tc = Clock::now();
+  comm_->allgather(mine, all);
+  m.t_comm += seconds_since(tc);
+  double mo[kMoments] = {};
+  for (size_t k = 0; k < all.size(); k += kMoments)
+    for (int j = 0; j < kMoments; ++j) mo[j] += all[k + size_t(j)];
+  const double n = mo[0];
+  const size_t TG = size_t(T) * G;
+  m.explained_variance = 0.0;
+  if (n > 0) {
+    const double var_t = mo[2] / n - (mo[1] / n) * (mo[1] / n);
+    const double var_r = mo[4] / n - (mo[3] / n) * (mo[3] / n);
+    m.explained_variance = var_t > 1e-12 ? 1.0 - var_r / var_t : 0.0;
+    value_norm_.update(mo[1] / n, mo[2] / n);
+  }
   const double vm = value_norm_.mean(), inv = 1.0 / value_norm_.std();
   for (size_t i = 0; i < TG; ++i) b.ret_norm[i] = float((b.ret[i] - vm) * inv);
-  zscore(b.adv.span(), b.mask);
+  if (n > 0) {
+    const double mean = mo[5] / n;
+    zscore_with(b.adv.span(), b.mask, mean, std::sqrt(std::max(0.0, mo[6] / n - mean * mean)));
+  }
 }
 
 void Trainer::update(IterationMetrics& m) {
@@ -402,16 +512,16 @@ void Trainer::update(IterationMetrics& m) {
   const int sw = net_->state_width();
   const int chunks_per_row = T / bptt;
 
-  // Chunks holding at least one real agent-step, per update block of envs (the gradient groups: each block's
-  // share of a minibatch is summed in order, the blocks in block order).
-  const int E = cfg_.envs, A = G / E;
-  const int K = std::min(cfg_.grad_groups, E);
+  // Chunks holding at least one real agent-step, per update block of this rank's envs (the gradient groups:
+  // each block's share of a minibatch is summed in order, the blocks in block order, across ranks too).
+  const int A = G / (env1_ - env0_);
+  const int K = block1_ - block0_;
   b.block_chunks.resize(size_t(K));
-  int n_chunks = 0;
+  int64_t local_chunks = 0;
   for (int k = 0; k < K; ++k) {
     std::vector<int32_t>& list = b.block_chunks[size_t(k)];
     list.clear();
-    const int g0 = int(int64_t(E) * k / K) * A, g1 = int(int64_t(E) * (k + 1) / K) * A;
+    const int g0 = (block_env(block0_ + k) - env0_) * A, g1 = (block_env(block0_ + k + 1) - env0_) * A;
     for (int c = 0; c < chunks_per_row; ++c) {
       for (int g = g0; g < g1; ++g) {
         bool any = false;
@@ -419,8 +529,11 @@ void Trainer::update(IterationMetrics& m) {
         if (any) list.push_back(c * G + g);
       }
     }
-    n_chunks += int(list.size());
+    local_chunks += int64_t(list.size());
   }
+  const Clock::time_point tc = Clock::now();
+  const int64_t n_chunks = comm_->sum(local_chunks);
+  m.t_comm += seconds_since(tc);
   if (n_chunks == 0) return;
   const int minibatches = cfg_.minibatches_for(n_chunks);
   int max_seq = 0;
@@ -451,7 +564,7 @@ void Trainer::update(IterationMetrics& m) {
     for (int k = 0; k < K; ++k) {
       std::vector<int32_t>& list = b.block_chunks[size_t(k)];
       physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_),
-                       (uint64_t(epoch) << 32) | uint64_t(k));
+                       (uint64_t(epoch) << 32) | uint64_t(block0_ + k));
       for (int i = int(list.size()) - 1; i > 0; --i) std::swap(list[i], list[rng.uniform_int(0, i + 1)]);
     }
     for (int mb = 0; mb < minibatches; ++mb) {
@@ -487,10 +600,13 @@ void Trainer::update(IterationMetrics& m) {
           }
         }
       });
-      int64_t total = 0;
-      for (int i = 0; i < S * bptt; ++i) total += b.mb_mask[i];
+      int64_t local_total = 0;
+      for (int i = 0; i < S * bptt; ++i) local_total += b.mb_mask[i];
       m.t_targets += seconds_since(t_gather);
       Clock::time_point tp = mark("gather", t_gather);
+      const int64_t total = comm_->sum(local_total);
+      m.t_comm += seconds_since(tp);
+      tp = Clock::now();
       if (total == 0) continue;
       const double inv_total = 1.0 / double(total);
       const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
@@ -508,12 +624,32 @@ void Trainer::update(IterationMetrics& m) {
         ppo_chunk_loss(hd, mbatch, out, g, b.loss_scratch.local(), st);
         if (poison) g.d_value[0] = std::numeric_limits<float>::quiet_NaN();
       };
-      double st[kNumStats] = {};
-      float* grads = net_->params().grads();
-      net_->forward_backward(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(),
-                             b.mb_state_v.data(), loss, std::span<double>(st, kNumStats), grads, b.mb_groups);
+      net_->compute_groups(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(),
+                           b.mb_state_v.data(), loss, kNumStats, b.mb_groups);
       m.t_backward += seconds_since(tp);
       tp = mark("forward+backward", tp);
+      // The minibatch's gradient: every block's group in block order, through the ranks in rank order; its
+      // statistics: every chunk's in chunk order.
+      float* grads = net_->params().grads();
+      comm_->chain_sum(
+          net_->params().buffer_floats(),
+          [&](size_t begin, size_t end, const float* before, float* out) {
+            tbb::parallel_for(
+                tbb::blocked_range<size_t>(begin, end, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
+                  net_->sum_groups(r.begin(), r.end(),
+                                   before == nullptr ? nullptr : before + (r.begin() - begin), out);
+                });
+          },
+          grads);
+      std::vector<double>& all_stats = b.all_chunk_stats;
+      comm_->allgather(net_->chunk_stats(), all_stats);
+      double st[kNumStats] = {};
+      for (size_t c = 0; c < all_stats.size(); c += kNumStats)
+        for (int k = 0; k < kNumStats; ++k) st[k] += all_stats[c + size_t(k)];
+      const double comm_seconds = comm_->take_seconds();
+      m.t_comm += comm_seconds;
+      m.t_backward += seconds_since(tp);
+      tp = Clock::now();
       const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);
       m.t_optimizer += seconds_since(tp);
       mark("optimizer", tp);

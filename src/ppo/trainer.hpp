@@ -36,6 +36,7 @@
 #include "nn/actor_critic.hpp"
 #include "nn/adam.hpp"
 #include "nn/obs_normalizer.hpp"
+#include "ppo/comm.hpp"
 #include "ppo/train_config.hpp"
 
 namespace hns::ppo {
@@ -72,6 +73,7 @@ struct IterationMetrics {
   // networks) + t_backward (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
   double t_targets = 0, t_backward = 0, t_optimizer = 0;
+  double t_comm = 0;            // of all the above, waiting for and exchanging with the other ranks
   int64_t unstable_resets = 0;  // envs reset by numerical trouble during this iteration
 
   std::string to_json() const;  // one line, no newline
@@ -87,8 +89,11 @@ struct NumericalError : std::runtime_error {
 class Trainer {
  public:
   // Validates the config (physics::ConfigError) and builds simulator, networks and optimiser; parameters are
-  // initialised from the seed.
-  explicit Trainer(const TrainConfig& config);
+  // initialised from the seed. `comm`: the processes (ranks) training this run together, each constructing
+  // its Trainer with the same config (null: this process alone). Rank r steps the envs of update blocks
+  // [K r / R, K (r + 1) / R) (K = config.update_blocks(); more ranks than blocks is a ConfigError); results
+  // (weights, optimiser, normalisers, metrics) are the same bits on every rank and for any rank count.
+  explicit Trainer(const TrainConfig& config, Comm* comm = nullptr);
   ~Trainer();
   Trainer(const Trainer&) = delete;
   Trainer& operator=(const Trainer&) = delete;
@@ -100,7 +105,10 @@ class Trainer {
   int64_t iteration() const { return iteration_; }
   int64_t agent_steps() const { return agent_steps_; }
   const nn::ActorCritic& net() const { return *net_; }
+  // This rank's envs: [first_env(), first_env() + sim().num_envs()) of the run's.
   const batch::BatchSim& sim() const { return *sim_; }
+  int first_env() const { return env0_; }
+  const Comm& comm() const { return *comm_; }
 
   // Checkpoint file (format in docs/training.md): magic, version, payload, FNV-1a 64 checksum. save() writes
   // a temporary file beside `path` and renames it over `path`. load() refuses (std::runtime_error with the
@@ -141,12 +149,21 @@ class Trainer {
   void compute_targets(IterationMetrics& m);
   void update(IterationMetrics& m);
   void restart_envs();
+  // First env of update block k (k = blocks_: the end).
+  int block_env(int k) const;
+  // The rollout's observation sums of every block, merged in block order across ranks, applied.
+  void apply_obs_sums(IterationMetrics& m);
   // Records [begin, now) as a trainer phase when tracing; returns now.
   std::chrono::steady_clock::time_point mark(const char* phase, std::chrono::steady_clock::time_point begin);
 
   TrainConfig cfg_;
+  std::unique_ptr<Comm> own_comm_;  // when the constructor was given none
+  Comm* comm_ = nullptr;
+  int blocks_ = 0;               // K update blocks of the run
+  int block0_ = 0, block1_ = 0;  // this rank's blocks [block0_, block1_)
+  int env0_ = 0, env1_ = 0;      // their envs [env0_, env1_)
   int rollout_steps_ = 0;  // T
-  int rows_ = 0;           // G = envs x max agents
+  int rows_ = 0;           // G = this rank's envs x max agents
   std::unique_ptr<batch::BatchSim> sim_;
   std::unique_ptr<nn::ActorCritic> net_;
   std::unique_ptr<nn::Adam> adam_;
@@ -156,7 +173,8 @@ class Trainer {
   int64_t iteration_ = 0;
   int64_t agent_steps_ = 0;
   int64_t env_steps_ = 0;
-  std::vector<int32_t> next_episode_;  // per env: the episode the next iteration starts
+  std::vector<int32_t>
+      next_episode_;  // per env of the run (every rank holds all): the next iteration's episode
   bool need_restart_ = true;           // envs must be (re)started before the next rollout
   bool tracing_ = false;
   std::vector<batch::TraceEvent> trace_;

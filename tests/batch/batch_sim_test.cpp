@@ -667,6 +667,45 @@ TEST(BatchDeterminism, SameSeedBitIdenticalForOneTwoAndFourThreads) {
   EXPECT_NE(one.at("agent_pos"), run(config, 45).at("agent_pos")) << "another seed, another run";
 }
 
+// A slice of a run's envs (one process of a data-parallel run steps envs [first_env, first_env + n)) plays
+// exactly what those envs play in one batch of them all, across episode ends.
+TEST(BatchDeterminism, SliceOfTheEnvsPlaysWhatTheWholeBatchPlays) {
+  BatchConfig config;
+  config.world = physics::WorldConfig::full();
+  config.world.horizon = 30;
+  config.num_envs = 7;
+  config.seed = 9;
+  BatchSim whole(config);
+  config.num_envs = 3;
+  config.first_env = 4;
+  BatchSim slice(config);
+  const int A = whole.layout().max_agents;
+  std::vector<AgentAction> all(size_t(7) * A), part(size_t(3) * A);
+  for (int k = 0; k < 45; ++k) {
+    for (int e = 0; e < 7; ++e) {
+      physics::Rng rng(9, uint64_t(k), uint64_t(e));  // the actions of global env e at step k
+      for (int a = 0; a < A; ++a) {
+        all[size_t(e) * A + a] = AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
+                                             uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
+                                             uint8_t(rng.uniform_int(0, 2))};
+      }
+    }
+    std::copy(all.begin() + 4 * A, all.end(), part.begin());
+    whole.step(all);
+    slice.step(part);
+  }
+  const auto w = snapshot(whole), p = snapshot(slice);
+  for (const auto& [name, bytes] : p) {
+    const std::vector<uint8_t>& full_bytes = w.at(name);
+    ASSERT_EQ(full_bytes.size() % 7, 0u) << name;
+    const size_t per_env = full_bytes.size() / 7;
+    ASSERT_EQ(bytes.size(), 3 * per_env) << name;
+    EXPECT_TRUE(std::equal(bytes.begin(), bytes.end(), full_bytes.begin() + 4 * per_env)) << name;
+  }
+  EXPECT_EQ(slice.state().episode[0], whole.state().episode[4]);
+  EXPECT_GE(whole.state().episode[4], 1) << "the run must cross an episode end";
+}
+
 // The per-kernel benchmarks recompute one phase from the SoA mirror; that must be exactly the step's work:
 // recomputing vision, lidar and observations after a step changes no byte of the state.
 TEST(BatchKernels, RecomputingAPhaseReproducesTheStep) {
