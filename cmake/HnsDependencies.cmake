@@ -52,6 +52,19 @@ if(HNS_BUILD_BENCH)
   endif()
 endif()
 
+# MPI for data-parallel training (the C API, from C++ without MPI's old C++ bindings; the command line alone
+# links it).
+if(HNS_MPI)
+  set(MPI_CXX_SKIP_MPICXX ON)
+  find_package(MPI QUIET COMPONENTS CXX)
+  if(NOT MPI_CXX_FOUND)
+    hns_missing("MPI (for hns train across processes; -DHNS_MPI=OFF builds without it)" "libopenmpi-dev")
+  endif()
+  find_program(HNS_MPIEXEC NAMES mpirun mpiexec)
+  if(NOT HNS_MPIEXEC)
+    hns_missing("mpirun (to launch and test hns train across processes)" "openmpi-bin")
+  endif()
+endif()
 # Python module: Debian's python3 (the interpreter python3-numpy and python3-pytest install for; a pyenv or
 # virtualenv python3 earlier on PATH usually lacks numpy), its headers, pybind11 and numpy.
 if(HNS_PYTHON)

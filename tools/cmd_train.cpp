@@ -7,6 +7,7 @@
 #include <unistd.h>
 #include <atomic>
 #include <csignal>
+#include <cstdlib>
 
 #include <cstdio>
 #include <filesystem>
@@ -19,6 +20,9 @@
 
 #include "batch/host.hpp"
 #include "cli.hpp"
+#ifdef HNS_HAVE_MPI
+#include "ppo/mpi_comm.hpp"
+#endif
 #include "nn/kernels.hpp"
 #include "physics/scene.hpp"
 #include "ppo/policy.hpp"
@@ -136,7 +140,34 @@ void record_replay(const ppo::Trainer& trainer, const std::string& path, int epi
   writer.finish();
 }
 
-int run_train(const TrainOptions& opt) {
+// The iterations of a rank other than 0: the same loop and stop decisions, no output.
+int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) {
+  g_stop.store(false);
+  std::signal(SIGINT, on_interrupt);
+  std::signal(SIGTERM, on_interrupt);
+  int status = 0;
+  while (trainer.iteration() < cfg.iterations) {
+    try {
+      trainer.iterate();
+    } catch (const ppo::NumericalError&) {
+      return 3;  // every rank sees the same non-finite statistics; rank 0 reports
+    }
+    const bool stop = comm.any(g_stop.load());
+    if (stop && trainer.iteration() < cfg.iterations) {
+      status = 130;
+      break;
+    }
+  }
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  return status;
+}
+
+// One process of a run (rank `comm.rank()` of `comm.size()`; a single process is rank 0 of 1). Every rank
+// validates the same arguments and builds its Trainer; rank 0 alone touches the run folder, prints and
+// writes.
+int run_train(const TrainOptions& opt, ppo::Comm& comm) {
+  const bool lead = comm.rank() == 0;
   ppo::TrainConfig cfg;
   std::string dir = opt.out;
   const bool resume = !opt.resume.empty();
@@ -191,7 +222,7 @@ int run_train(const TrainOptions& opt) {
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
-  if (!resume) {
+  if (!resume && lead) {
     check_run_folder(dir);
     // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
     // (a NaN or a crash in its first iterations) cannot be resumed, so the same command starts it over.
@@ -202,7 +233,7 @@ int run_train(const TrainOptions& opt) {
   }
   // The trainer, and the checkpoint it resumes or starts from, before the folder is created or any file of it
   // removed: a refused checkpoint changes nothing.
-  ppo::Trainer trainer(cfg);
+  ppo::Trainer trainer(cfg, &comm);
   std::string initialized;
   if (resume) {
     try {
@@ -213,7 +244,7 @@ int run_train(const TrainOptions& opt) {
     }
   } else if (!cfg.init_from.empty()) {
     std::error_code ec;
-    if (fs::equivalent(cfg.init_from, ckpt, ec)) {
+    if (lead && fs::equivalent(cfg.init_from, ckpt, ec)) {
       throw physics::ConfigError(init_what + cfg.init_from + " is the checkpoint of --out " + dir +
                                  ", which this run replaces: copy it elsewhere first");
     }
@@ -224,6 +255,7 @@ int run_train(const TrainOptions& opt) {
       return 2;
     }
   }
+  if (!lead) return follow(trainer, cfg, comm);
   if (!resume) {
     std::error_code ec;
     fs::create_directories(dir, ec);  // before the --profile check: a profile may go into the new run folder
@@ -269,6 +301,12 @@ int run_train(const TrainOptions& opt) {
   std::printf("  memory: about %.0f MiB estimated, %.0f MiB available\n",
               double(cfg.estimated_bytes()) / (1 << 20), double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
+  if (comm.size() > 1) {
+    std::printf(
+        "  %d ranks (MPI), this one stepping envs [%d, %d) of update blocks 0..%d; every rank the same\n",
+        comm.size(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs(),
+        cfg.update_blocks() - 1);
+  }
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
                 static_cast<long long>(trainer.iteration()));
@@ -338,20 +376,24 @@ int run_train(const TrainOptions& opt) {
                           {&totals.t_targets, m.t_targets},
                           {&totals.t_backward, m.t_backward},
                           {&totals.t_optimizer, m.t_optimizer},
-                          {&totals.t_other, m.t_other}}) {
+                          {&totals.t_other, m.t_other},
+                          {&totals.t_comm, m.t_comm}}) {
       *sum += v;
     }
     mean_seconds = (mean_seconds * timed + m.seconds) / (timed + 1);
     ++timed;
     const double eta = mean_seconds * double(cfg.iterations - m.iteration);
+    const std::string ranks = comm.size() > 1 ? "  ranks " + std::to_string(comm.size()) : "";
     std::printf(
-        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f  "
+        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f%s  "
         "ETA %s\n",
         static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
-        m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, duration_text(eta).c_str());
+        m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, ranks.c_str(),
+        duration_text(eta).c_str());
     std::fflush(stdout);
     const bool last = trainer.iteration() >= cfg.iterations;
-    const bool stop = g_stop.load();  // read once: a signal between two reads must not skip the checkpoint
+    // Read once (a signal between two reads must not skip the checkpoint) and agreed by every rank.
+    const bool stop = comm.any(g_stop.load());
     if (last || stop || trainer.iteration() % cfg.checkpoint_every == 0) {
       trainer.save(ckpt);
       last_checkpoint = trainer.iteration();
@@ -390,6 +432,9 @@ int run_train(const TrainOptions& opt) {
         ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
         (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
         totals.t_targets * w, totals.t_other * w);
+    if (comm.size() > 1)
+      std::printf("  communication with the other ranks (inside the phases above): %.1f%%\n",
+                  totals.t_comm * w);
   }
   if (status == 0) {
     std::printf(
@@ -398,6 +443,49 @@ int run_train(const TrainOptions& opt) {
         static_cast<long long>(trainer.iteration()), dir.c_str(), dir.c_str(), dir.c_str());
   }
   return status;
+}
+
+// hns train in this process alone, or as one rank of an MPI job (started by mpirun, mpiexec or srun).
+int train_command(const TrainOptions& opt) {
+#ifdef HNS_HAVE_MPI
+  if (ppo::launched_by_mpi()) {
+    ppo::MpiComm comm;
+    const std::string who = comm.size() > 1 ? "hns train (rank " + std::to_string(comm.rank()) + ")" : "hns";
+    int status = 0;
+    try {
+      status = run_train(opt, comm);
+    } catch (const physics::ConfigError& e) {
+      std::fprintf(stderr, "%s: bad configuration: %s\n", who.c_str(), e.what());
+      status = 2;
+    } catch (const std::bad_alloc&) {
+      std::fprintf(stderr, "%s: error: out of memory (use fewer envs, a smaller model or more ranks)\n",
+                   who.c_str());
+      status = 1;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "%s: error: %s\n", who.c_str(), e.what());
+      status = 1;
+    }
+    std::fflush(stdout);
+    std::fflush(stderr);
+    // A rank that fails ends them all (the others may be waiting for it); a run that finished or stopped on
+    // request ends every rank normally.
+    if (status != 0 && status != 130 && comm.size() > 1) comm.abort(status);
+    return status;
+  }
+#else
+  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}) {
+    const char* n = std::getenv(var);
+    if (n != nullptr && std::atoi(n) > 1) {
+      throw physics::ConfigError(
+          "this hns was built without MPI (HNS_MPI=OFF or no libopenmpi-dev), but it was started as one of " +
+          std::string(n) +
+          " processes: every one would train the whole run alone; build with MPI, or run "
+          "hns train without mpirun");
+    }
+  }
+#endif
+  ppo::SingleProcess single;
+  return run_train(opt, single);
 }
 
 }  // namespace
@@ -420,7 +508,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   sub->add_option("--profile", opt->profile,
                   "Write a per-phase Chrome trace (JSON) of the first 3 iterations to this file");
   sub->add_flag("--overwrite", opt->overwrite, "Start over in a --out folder that already holds a run");
-  commands.push_back({sub, [opt] { return run_train(*opt); }});
+  commands.push_back({sub, [opt] { return train_command(*opt); }});
 }
 
 }  // namespace hns::tools

@@ -132,7 +132,11 @@ std::string read_payload(const std::string& path) {
 
 void Trainer::save(const std::string& path) const {
   Writer w;
-  w.put_string(cfg_.to_json());
+  // The thread count is the machine's, not the run's (results do not depend on it): recorded as 0, so that a
+  // checkpoint is the same bytes for any thread count, as for any rank count.
+  TrainConfig stored = cfg_;
+  stored.threads = 0;
+  w.put_string(stored.to_json());
   w.put(iteration_);
   w.put(agent_steps_);
   w.put(env_steps_);

@@ -111,14 +111,14 @@ std::string IterationMetrics::to_json() const {
       "\"approx_kl\": %.6g, \"clip_frac\": %.6g, \"explained_variance\": %.6g, \"grad_norm\": %.6g, "
       "\"value_mean\": %.6g, \"value_std\": %.6g, \"time_simulate\": %.4f, \"time_observe\": %.4f, "
       "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_backward\": %.4f, "
-      "\"time_optimizer\": %.4f, \"time_other\": %.4f, "
+      "\"time_optimizer\": %.4f, \"time_other\": %.4f, \"time_comm\": %.4f, "
       "\"unstable_resets\": %lld}",
       static_cast<long long>(iteration), static_cast<long long>(agent_steps),
       static_cast<long long>(env_steps), seconds, steps_per_s, episodes, hider_reward, seeker_reward,
       max_box_move_prep, num_box_lock_prep, max_ramp_move_prep, num_ramp_lock_prep, max_box_move,
       num_box_lock, max_ramp_move, num_ramp_lock, policy_loss, value_loss, entropy, approx_kl, clip_frac,
       explained_variance, grad_norm, value_mean, value_std, t_simulate, t_observe, t_infer, t_learn,
-      t_targets, t_backward, t_optimizer, t_other, static_cast<long long>(unstable_resets));
+      t_targets, t_backward, t_optimizer, t_other, t_comm, static_cast<long long>(unstable_resets));
   return buf;
 }
 
@@ -212,7 +212,7 @@ Clock::time_point Trainer::mark(const char* phase, Clock::time_point begin) {
   return now;
 }
 
-void Trainer::apply_obs_sums(IterationMetrics& m) {
+void Trainer::apply_obs_sums() {
   // Every block's sums (rows, then sum and square per feature, key by key), in block order across ranks.
   std::vector<double> mine, all;
   for (const nn::ObsNormalizer::Sums& k : buf_->block_obs_sums) {
@@ -222,9 +222,7 @@ void Trainer::apply_obs_sums(IterationMetrics& m) {
       mine.insert(mine.end(), k.sq[size_t(key)].begin(), k.sq[size_t(key)].end());
     }
   }
-  const Clock::time_point tc = Clock::now();
   comm_->allgather(mine, all);
-  m.t_comm += seconds_since(tc);
   nn::ObsNormalizer::Sums total = obs_norm_->make_sums(), block = total;
   for (size_t at = 0; at < all.size();) {
     for (int key = 0; key < nn::kNumObsKeys; ++key) {
@@ -254,6 +252,7 @@ IterationMetrics Trainer::iterate() {
   const int64_t agent_steps_before = agent_steps_;
   const int64_t unstable_before = sim_->unstable_resets();
   IterationMetrics m;
+  (void)comm_->take_seconds();
   if (need_restart_) restart_envs();
   const int threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
   tbb::task_arena arena(threads);
@@ -268,7 +267,7 @@ IterationMetrics Trainer::iterate() {
     // The observation statistics (summed during the rollout) move after the update, so that a rollout and
     // the update of its data see the same normalisation.
     const Clock::time_point t_obs = Clock::now();
-    apply_obs_sums(m);
+    apply_obs_sums();
     m.t_observe += seconds_since(t_obs);
     mark("observation normaliser", t_obs);
   });
@@ -279,6 +278,7 @@ IterationMetrics Trainer::iterate() {
   m.value_mean = value_norm_.mean();
   m.value_std = value_norm_.std();
   m.unstable_resets = comm_->sum(sim_->unstable_resets() - unstable_before);
+  m.t_comm = comm_->take_seconds();
   m.seconds = seconds_since(t0);
   m.t_other = std::max(0.0, m.seconds - m.t_simulate - m.t_observe - m.t_infer - m.t_learn);
   m.steps_per_s = m.seconds > 0 ? double(agent_steps_ - agent_steps_before) / m.seconds : 0.0;
@@ -410,7 +410,6 @@ void Trainer::rollout(IterationMetrics& m) {
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
   // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh. Every
   // rank learns every env's next episode (the checkpoint holds them all).
-  const Clock::time_point tc = Clock::now();
   const batch::BatchState& s = sim_->state();
   std::vector<double> mine(static_cast<size_t>(E), 0.0), all;
   bool restart = false;
@@ -428,7 +427,6 @@ void Trainer::rollout(IterationMetrics& m) {
   double totals[kBlockEpisodeValues] = {};
   for (size_t k = 0; k < all.size(); k += kBlockEpisodeValues)
     for (int j = 0; j < kBlockEpisodeValues; ++j) totals[j] += all[k + size_t(j)];
-  m.t_comm += seconds_since(tc);
   const double episodes = totals[0];
   m.episodes = int(episodes);
   if (episodes > 0) {
@@ -482,9 +480,7 @@ void Trainer::compute_targets(IterationMetrics& m) {
       }
     }
   }
-  const Clock::time_point tc = Clock::now();
   comm_->allgather(mine, all);
-  m.t_comm += seconds_since(tc);
   double mo[kMoments] = {};
   for (size_t k = 0; k < all.size(); k += kMoments)
     for (int j = 0; j < kMoments; ++j) mo[j] += all[k + size_t(j)];
@@ -531,9 +527,7 @@ void Trainer::update(IterationMetrics& m) {
     }
     local_chunks += int64_t(list.size());
   }
-  const Clock::time_point tc = Clock::now();
   const int64_t n_chunks = comm_->sum(local_chunks);
-  m.t_comm += seconds_since(tc);
   if (n_chunks == 0) return;
   const int minibatches = cfg_.minibatches_for(n_chunks);
   int max_seq = 0;
@@ -605,8 +599,6 @@ void Trainer::update(IterationMetrics& m) {
       m.t_targets += seconds_since(t_gather);
       Clock::time_point tp = mark("gather", t_gather);
       const int64_t total = comm_->sum(local_total);
-      m.t_comm += seconds_since(tp);
-      tp = Clock::now();
       if (total == 0) continue;
       const double inv_total = 1.0 / double(total);
       const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
@@ -646,8 +638,6 @@ void Trainer::update(IterationMetrics& m) {
       double st[kNumStats] = {};
       for (size_t c = 0; c < all_stats.size(); c += kNumStats)
         for (int k = 0; k < kNumStats; ++k) st[k] += all_stats[c + size_t(k)];
-      const double comm_seconds = comm_->take_seconds();
-      m.t_comm += comm_seconds;
       m.t_backward += seconds_since(tp);
       tp = Clock::now();
       const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);

@@ -152,7 +152,7 @@ class Trainer {
   // First env of update block k (k = blocks_: the end).
   int block_env(int k) const;
   // The rollout's observation sums of every block, merged in block order across ranks, applied.
-  void apply_obs_sums(IterationMetrics& m);
+  void apply_obs_sums();
   // Records [begin, now) as a trainer phase when tracing; returns now.
   std::chrono::steady_clock::time_point mark(const char* phase, std::chrono::steady_clock::time_point begin);
 
