@@ -1,5 +1,6 @@
 #include "ppo/train_config.hpp"
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cmath>
@@ -9,6 +10,7 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
+#include "nn/actor_critic.hpp"
 #include "nn/entity_net.hpp"
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
@@ -283,6 +285,13 @@ std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
     ++k;
   });
   return result;
+}
+
+int TrainConfig::update_blocks() const {
+  const int64_t chunks = buffer_chunks();
+  const int64_t per_minibatch = chunks / std::max(1, minibatches_for(chunks));
+  const int64_t fill = std::max<int64_t>(1, per_minibatch / nn::ParallelConfig{}.train_chunk_sequences);
+  return int(std::min({int64_t(grad_groups), int64_t(envs), fill}));
 }
 
 int TrainConfig::minibatches_for(int64_t chunks) const {

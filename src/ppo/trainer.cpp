@@ -132,10 +132,11 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   blocks_ = cfg_.update_blocks();
   const int R = comm_->size(), r = comm_->rank();
   if (R > blocks_) {
-    throw physics::ConfigError(
-        std::to_string(R) + " ranks for " + std::to_string(blocks_) +
-        " update blocks (min(grad_groups, envs)): every rank needs a block of envs of its own; use at most " +
-        std::to_string(blocks_) + " ranks or raise grad_groups (and envs)");
+    throw physics::ConfigError(std::to_string(R) + " ranks for " + std::to_string(blocks_) +
+                               " update blocks (min(grad_groups, envs), fewer for a small buffer; "
+                               "docs/training.md): every rank needs a "
+                               "block of envs of its own; use at most " +
+                               std::to_string(blocks_) + " ranks or raise grad_groups (and envs)");
   }
   block0_ = int(int64_t(blocks_) * r / R);
   block1_ = int(int64_t(blocks_) * (r + 1) / R);

@@ -80,6 +80,24 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("minibatch_chunks", "1025", "must be in [0, 1024]");
 }
 
+// Update blocks (gradient groups, the unit of a rank): min(grad_groups, envs), fewer where a block's share of
+// a minibatch would not fill a 16-sequence chunk.
+TEST(TrainConfig, UpdateBlocksFillATrainingChunk) {
+  TrainConfig c;  // 32 quadrant envs x 4 slots x 8 chunks, 4 minibatches: 256 chunks each
+  EXPECT_EQ(c.update_blocks(), 8);
+  c.grad_groups = 32;
+  EXPECT_EQ(c.update_blocks(), 16);  // 16 chunks per block and minibatch
+  c.envs = 8;                        // 64 chunks per minibatch
+  EXPECT_EQ(c.update_blocks(), 4);
+  c.minibatch_chunks = 16;  // 16 minibatches of 16 chunks
+  EXPECT_EQ(c.update_blocks(), 1);
+  c.minibatch_chunks = 0;
+  c.grad_groups = 3;
+  EXPECT_EQ(c.update_blocks(), 3);
+  c.envs = 2;
+  EXPECT_EQ(c.update_blocks(), 1);  // 16 chunks per minibatch in all: one block
+}
+
 // The paper sizes an update by its minibatch in chunks: minibatch_chunks splits each epoch into as many equal
 // minibatches as it takes; without it `minibatches` does, never into more minibatches than chunks.
 TEST(TrainConfig, MinibatchChunksSizesTheUpdate) {
