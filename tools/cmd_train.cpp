@@ -214,9 +214,14 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
   }
   cfg.validate();
-  check_memory("envs = " + std::to_string(cfg.envs) + " with the " + cfg.model + " model and " +
-                   std::to_string(cfg.grad_groups) + " gradient groups",
-               cfg.estimated_bytes());
+  // Every rank checks its own machine for its share.
+  check_memory("envs = " + std::to_string(cfg.envs) +
+                   (comm.size() > 1 ? " (" + std::to_string(cfg.envs_per_rank(comm.size())) +
+                                          " on this rank of " + std::to_string(comm.size()) + ")"
+                                    : std::string()) +
+                   " with the " + cfg.model + " model and " + std::to_string(cfg.grad_groups) +
+                   " gradient groups",
+               cfg.estimated_bytes(comm.size()));
 
   if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
@@ -298,8 +303,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
       cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
       cfg.rollout_steps(), static_cast<long long>(cfg.buffer_chunks()), cfg.bptt, cfg.epochs, update.c_str(),
       static_cast<unsigned long long>(cfg.seed), threads_text(cfg.threads).c_str());
-  std::printf("  memory: about %.0f MiB estimated, %.0f MiB available\n",
-              double(cfg.estimated_bytes()) / (1 << 20), double(batch::available_memory_bytes()) / (1 << 20));
+  std::printf("  memory: about %.0f MiB estimated%s, %.0f MiB available\n",
+              double(cfg.estimated_bytes(comm.size())) / (1 << 20), comm.size() > 1 ? " per rank" : "",
+              double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
   if (comm.size() > 1) {
     std::printf(

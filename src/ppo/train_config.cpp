@@ -306,10 +306,22 @@ physics::WorldConfig TrainConfig::world() const {
   return w;
 }
 
-size_t TrainConfig::estimated_bytes() const {
+int TrainConfig::envs_per_rank(int ranks) const {
+  const int64_t k = update_blocks();
+  const int r = std::max(1, std::min<int>(ranks, int(k)));
+  int most = 0;
+  for (int i = 0; i < r; ++i) {
+    const int64_t b0 = k * i / r, b1 = k * (i + 1) / r;
+    most = std::max(most, int(int64_t(envs) * b1 / k - int64_t(envs) * b0 / k));
+  }
+  return most;
+}
+
+size_t TrainConfig::estimated_bytes(int ranks) const {
+  const int rank_envs = envs_per_rank(ranks);
   batch::BatchConfig bc;
   bc.world = world();
-  bc.num_envs = envs;
+  bc.num_envs = rank_envs;
   const batch::Layout L = batch::Layout::of(bc);
   // Per buffer row and entity (other agents, boxes, ramps, self) the buffers and activations of both
   // networks take about 0.7 KB (small) or 1.85 KB (paper), on a fixed 70 MB or 165 MB (code, networks,
@@ -318,7 +330,7 @@ size_t TrainConfig::estimated_bytes() const {
   const bool paper = model == "paper";
   const size_t base = (paper ? 165u : 70u) << 20;
   const size_t per_entity_row = paper ? 1850 : 700;
-  const size_t rows = size_t(rollout_steps()) * size_t(envs) * size_t(L.max_agents);
+  const size_t rows = size_t(rollout_steps()) * size_t(rank_envs) * size_t(L.max_agents);
   const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + 1);
   nn::ParamLayout layout;
   nn::EntityNet(nn::net_preset(model), nn::NetHead::kPolicy, layout, "policy");

@@ -61,7 +61,10 @@ struct TrainConfig {
   void validate() const;
   // Estimated peak memory of a Trainer of this config, bytes: the simulator, the rollout buffers and the
   // networks' activations per buffer row (fitted to measured resident memory; within about 25 %).
-  size_t estimated_bytes() const;
+  // With `ranks` processes (MPI): the memory of the rank with the most envs.
+  size_t estimated_bytes(int ranks = 1) const;
+  // Envs of the rank with the most of them when `ranks` processes share the update blocks.
+  int envs_per_rank(int ranks) const;
   // The world this config trains on (preset with the horizon override).
   physics::WorldConfig world() const;
   int rollout_steps() const { return world().horizon * episodes_per_iteration; }
