@@ -308,10 +308,8 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
               double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
   if (comm.size() > 1) {
-    std::printf(
-        "  %d ranks (MPI), this one stepping envs [%d, %d) of update blocks 0..%d; every rank the same\n",
-        comm.size(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs(),
-        cfg.update_blocks() - 1);
+    std::printf("  %d ranks (MPI), %d update blocks; rank 0 steps envs [%d, %d)\n", comm.size(),
+                cfg.update_blocks(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs());
   }
   if (resume)
     std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
