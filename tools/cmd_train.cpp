@@ -56,6 +56,7 @@ extern "C" void on_interrupt(int) {
   g_stop.store(true);
   std::signal(SIGINT, SIG_DFL);  // a second Ctrl-C ends the process at once
   std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGUSR1, SIG_DFL);
 }
 
 std::string read_text(const std::string& path, const char* what) {
@@ -145,6 +146,9 @@ int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) 
   g_stop.store(false);
   std::signal(SIGINT, on_interrupt);
   std::signal(SIGTERM, on_interrupt);
+  // SIGUSR1 too: mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM,
+  // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
+  std::signal(SIGUSR1, on_interrupt);
   int status = 0;
   while (trainer.iteration() < cfg.iterations) {
     try {
@@ -160,6 +164,7 @@ int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) 
   }
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGUSR1, SIG_DFL);
   return status;
 }
 
@@ -214,14 +219,14 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
   }
   cfg.validate();
-  // Every rank checks its own machine for its share.
+  // Every rank checks its machine for the ranks there (each counted with the largest share).
   check_memory("envs = " + std::to_string(cfg.envs) +
                    (comm.size() > 1 ? " (" + std::to_string(cfg.envs_per_rank(comm.size())) +
                                           " on this rank of " + std::to_string(comm.size()) + ")"
                                     : std::string()) +
                    " with the " + cfg.model + " model and " + std::to_string(cfg.grad_groups) +
                    " gradient groups",
-               cfg.estimated_bytes(comm.size()));
+               cfg.estimated_bytes(comm.size()) * size_t(comm.ranks_on_this_machine()));
 
   if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
@@ -258,6 +263,21 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     } catch (const std::runtime_error& e) {
       std::fprintf(stderr, "hns train: %s%s: %s\n", init_what.c_str(), cfg.init_from.c_str(), e.what());
       return 2;
+    }
+  }
+  // Every rank must start from the same state: the same config and, resuming or starting from a checkpoint,
+  // the same file (a stale copy on one machine would train other weights there).
+  if (comm.size() > 1) {
+    const uint64_t fp = trainer.fingerprint();
+    const std::vector<double> mine = {double(fp >> 32), double(fp & 0xffffffffULL)};
+    std::vector<double> all;
+    comm.allgather(mine, all);
+    for (int r = 1; r < comm.size(); ++r) {
+      if (all[size_t(2 * r)] != all[0] || all[size_t(2 * r) + 1] != all[1]) {
+        throw physics::ConfigError("rank " + std::to_string(r) +
+                                   " starts from another config or checkpoint than rank 0 (every rank must "
+                                   "see the same files and arguments: a shared run folder, the same build)");
+      }
     }
   }
   if (!lead) return follow(trainer, cfg, comm);
@@ -344,6 +364,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   g_stop.store(false);
   std::signal(SIGINT, on_interrupt);
   std::signal(SIGTERM, on_interrupt);
+  // SIGUSR1 too: mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM,
+  // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
+  std::signal(SIGUSR1, on_interrupt);
   std::ofstream metrics(metrics_path, std::ios::app);
   if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
   ppo::IterationMetrics totals;  // summed times of this process's iterations
@@ -419,6 +442,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   }
   std::signal(SIGINT, SIG_DFL);
   std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGUSR1, SIG_DFL);
   finish_profile();  // a run shorter than the profiled iterations
   if (totals.seconds > 0) {
     const double w = 100.0 / totals.seconds;
@@ -437,7 +461,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
         (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
         totals.t_targets * w, totals.t_other * w);
     if (comm.size() > 1)
-      std::printf("  communication with the other ranks (inside the phases above): %.1f%%\n",
+      std::printf("  communication with and waiting for the other ranks (inside the phases above): %.1f%%\n",
                   totals.t_comm * w);
   }
   if (status == 0) {
@@ -471,13 +495,13 @@ int train_command(const TrainOptions& opt) {
     }
     std::fflush(stdout);
     std::fflush(stderr);
-    // A rank that fails ends them all (the others may be waiting for it); a run that finished or stopped on
-    // request ends every rank normally.
-    if (status != 0 && status != 130 && comm.size() > 1) comm.abort(status);
+    // A rank that fails ends them all (the others may be waiting for it); a run that finished, stopped on
+    // request or stopped at a non-finite loss (every rank sees the same statistics) ends every rank normally.
+    if (status != 0 && status != 130 && status != 3 && comm.size() > 1) comm.abort(status);
     return status;
   }
 #else
-  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"}) {
+  for (const char* var : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"}) {
     const char* n = std::getenv(var);
     if (n != nullptr && std::atoi(n) > 1) {
       throw physics::ConfigError(
@@ -488,6 +512,13 @@ int train_command(const TrainOptions& opt) {
     }
   }
 #endif
+  // srun without an MPI plugin starts plain processes, each of which would train the whole run alone.
+  const char* tasks = std::getenv("SLURM_STEP_NUM_TASKS");
+  if (tasks != nullptr && std::atoi(tasks) > 1) {
+    throw physics::ConfigError("started by srun as " + std::string(tasks) +
+                               " tasks without MPI (no PMI/PMIx): every one would train the whole run alone; "
+                               "use srun --mpi=pmix with an MPI build, or one task");
+  }
   ppo::SingleProcess single;
   return run_train(opt, single);
 }

@@ -62,13 +62,19 @@ struct ActorCritic::ThreadWork {
   EntityNet::Work value;
   FloatBuffer d_logits;  // [rows, num_logits]
   FloatBuffer d_value;   // [rows]
+  std::vector<int32_t> index;  // [sequences] an inference chunk's rows, padded
+  FloatBuffer state_p;         // [sequences, state width] its LSTM states, padded
+  FloatBuffer state_v;
   ThreadWork(const ActorCritic& ac, int seqs, int st)
       : sequences(seqs),
         steps(st),
         policy(ac.policy_.make_workspace(seqs, st)),
         value(ac.value_.make_workspace(seqs, st)),
         d_logits(static_cast<size_t>(seqs) * st * ac.heads_.num_logits()),
-        d_value(static_cast<size_t>(seqs) * st) {}
+        d_value(static_cast<size_t>(seqs) * st),
+        index(static_cast<size_t>(seqs)),
+        state_p(static_cast<size_t>(seqs) * ac.state_width()),
+        state_v(static_cast<size_t>(seqs) * ac.state_width()) {}
 };
 
 ActorCritic::ActorCritic(const NetConfig& cfg, ParallelConfig parallel)
@@ -108,15 +114,34 @@ void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, 
   const int nl = heads_.num_logits();
   const float* p = params_.values();
   pack_lstms(false);
+  auto padded = [](int rows) { return (rows + kActRowAlign - 1) / kActRowAlign * kActRowAlign; };
   tbb::parallel_for(0, num_chunks, [&](int c) {
-    ThreadWork& w = local_work(infer_work_, chunk, 1);
+    ThreadWork& w = local_work(infer_work_, padded(chunk), 1);
     const int first = c * chunk;
     const int n = std::min(chunk, agents - first);
-    const ObsBatch sub = obs.rows_from(first, cfg_.obs);
+    // The chunk padded with copies of its first row (results unused), so that every product has a whole
+    // number of row panels and a row's outputs do not depend on how many rows its chunk has (a run split
+    // over processes cuts its chunks elsewhere).
+    const int n_pad = padded(n);
+    ObsBatch sub = obs.rows_from(first, cfg_.obs);
+    for (int i = 0; i < n_pad; ++i) {
+      const int r = i < n ? i : 0;
+      w.index[size_t(i)] = sub.index != nullptr ? sub.index[r] : r;
+    }
+    sub.index = w.index.data();
     float* ps = policy_state + static_cast<ptrdiff_t>(first) * sw;
     float* vs = value_state + static_cast<ptrdiff_t>(first) * sw;
-    policy_.forward(p, norm, sub.policy_inputs(), n, 1, ps, ps, w.policy, &lstm_packed_[0]);
-    value_.forward(p, norm, sub.value_inputs(), n, 1, vs, vs, w.value, &lstm_packed_[1]);
+    const size_t real = static_cast<size_t>(n) * sw, all = static_cast<size_t>(n_pad) * sw;
+    std::copy_n(ps, real, w.state_p.data());
+    std::copy_n(vs, real, w.state_v.data());
+    std::fill(w.state_p.data() + real, w.state_p.data() + all, 0.0f);
+    std::fill(w.state_v.data() + real, w.state_v.data() + all, 0.0f);
+    policy_.forward(p, norm, sub.policy_inputs(), n_pad, 1, w.state_p.data(), w.state_p.data(), w.policy,
+                    &lstm_packed_[0]);
+    value_.forward(p, norm, sub.value_inputs(), n_pad, 1, w.state_v.data(), w.state_v.data(), w.value,
+                   &lstm_packed_[1]);
+    std::copy_n(w.state_p.data(), real, ps);
+    std::copy_n(w.state_v.data(), real, vs);
     const CMat logits = policy_.output(w.policy, n);
     heads_.sample(logits, uniforms + static_cast<ptrdiff_t>(first) * nh,
                   out.actions + static_cast<ptrdiff_t>(first) * nh,

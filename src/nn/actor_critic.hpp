@@ -49,6 +49,10 @@ struct ObsBatch {
   NetInputs value_inputs() const;
 };
 
+// Rows of an inference chunk are padded to a multiple of this: Eigen computes a remainder of its 4-row panels
+// by another kernel, whose sums round differently, and a row's outputs must not depend on its chunk.
+inline constexpr int kActRowAlign = 8;
+
 // Fixed work partition (independent of the thread count).
 struct ParallelConfig {
   int infer_chunk_agents = 64;     // agents per inference task

@@ -130,7 +130,7 @@ std::string read_payload(const std::string& path) {
 
 }  // namespace
 
-void Trainer::save(const std::string& path) const {
+std::string Trainer::checkpoint_payload() const {
   Writer w;
   // The thread count is the machine's, not the run's (results do not depend on it): recorded as 0, so that a
   // checkpoint is the same bytes for any thread count, as for any rank count.
@@ -157,7 +157,16 @@ void Trainer::save(const std::string& path) const {
   w.put(value_norm_.biased_sq);
   w.put(value_norm_.debias);
 
-  const std::string& payload = w.bytes();
+  return w.bytes();
+}
+
+uint64_t Trainer::fingerprint() const {
+  const std::string payload = checkpoint_payload();
+  return fnv1a64(payload.data(), payload.size());
+}
+
+void Trainer::save(const std::string& path) const {
+  const std::string payload = checkpoint_payload();
   std::string file(kMagic, sizeof kMagic);
   const uint32_t version = kVersion;
   const uint64_t length = payload.size();

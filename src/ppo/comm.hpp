@@ -34,8 +34,11 @@ class Comm {
   // Called for consecutive slices of [0, n); at the end `out` holds the whole sum on every rank.
   using Fold = std::function<void(size_t begin, size_t end, const float* before, float* out)>;
   virtual void chain_sum(size_t n, const Fold& fold, float* out) = 0;
-  // Seconds spent inside these operations since the last call (the time split's "communication").
+  // Seconds spent inside these operations since the last call, waiting for slower ranks included (the time
+  // split's "communication").
   virtual double take_seconds() = 0;
+  // Ranks on this machine, this one included (they share its memory).
+  virtual int ranks_on_this_machine() = 0;
 };
 
 // One process holds the whole run.
@@ -50,6 +53,7 @@ class SingleProcess final : public Comm {
   bool any(bool mine) override { return mine; }
   void chain_sum(size_t n, const Fold& fold, float* out) override { fold(0, n, nullptr, out); }
   double take_seconds() override { return 0.0; }
+  int ranks_on_this_machine() override { return 1; }
 };
 
 }  // namespace hns::ppo

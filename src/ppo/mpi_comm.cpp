@@ -42,8 +42,14 @@ bool launched_by_mpi() {
 MpiComm::MpiComm() {
   int provided = 0;
   check(MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided), "MPI_Init_thread");
-  // Errors come back as return codes (checked above) instead of ending the job inside MPI.
-  MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN);
+  if (provided < MPI_THREAD_FUNNELED) {
+    MPI_Finalize();
+    throw std::runtime_error(
+        "the MPI library does not support MPI_THREAD_FUNNELED (hns's TBB threads never call "
+        "MPI, but the library must allow them)");
+  }
+  // Errors come back as return codes (checked below) instead of ending the job inside MPI.
+  check(MPI_Comm_set_errhandler(MPI_COMM_WORLD, MPI_ERRORS_RETURN), "MPI_Comm_set_errhandler");
   check(MPI_Comm_rank(MPI_COMM_WORLD, &rank_), "MPI_Comm_rank");
   check(MPI_Comm_size(MPI_COMM_WORLD, &size_), "MPI_Comm_size");
 }
@@ -102,6 +108,16 @@ void MpiComm::chain_sum(size_t n, const Fold& fold, float* out) {
     const int len = int(std::min(n - begin, size_t(1) << 28));
     check(MPI_Bcast(out + begin, len, MPI_FLOAT, size_ - 1, MPI_COMM_WORLD), "MPI_Bcast");
   }
+}
+
+int MpiComm::ranks_on_this_machine() {
+  MPI_Comm node;
+  check(MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, rank_, MPI_INFO_NULL, &node),
+        "MPI_Comm_split_type");
+  int n = 1;
+  MPI_Comm_size(node, &n);
+  MPI_Comm_free(&node);
+  return n;
 }
 
 double MpiComm::take_seconds() {

@@ -37,6 +37,7 @@ class MpiComm final : public Comm {
   bool any(bool mine) override;
   void chain_sum(size_t n, const Fold& fold, float* out) override;
   double take_seconds() override;
+  int ranks_on_this_machine() override;
 
   // Ends every rank of the job at once (MPI_Abort) with this exit status: for a rank that cannot go on while
   // the others wait for it.

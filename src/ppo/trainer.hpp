@@ -73,7 +73,7 @@ struct IterationMetrics {
   // networks) + t_backward (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
   double t_targets = 0, t_backward = 0, t_optimizer = 0;
-  double t_comm = 0;            // of all the above, waiting for and exchanging with the other ranks
+  double t_comm = 0;            // of all the above, exchanging with and waiting for the other ranks
   int64_t unstable_resets = 0;  // envs reset by numerical trouble during this iteration
 
   std::string to_json() const;  // one line, no newline
@@ -119,6 +119,9 @@ class Trainer {
   enum class LoadMode { kResume, kPolicy };
   void save(const std::string& path) const;
   void load(const std::string& path, LoadMode mode = LoadMode::kResume);
+  // FNV-1a 64 of what save() would write (config, counters, weights, optimiser, normalisers): the ranks of a
+  // run compare it before they start, so that none trains from another config or checkpoint.
+  uint64_t fingerprint() const;
   // The config stored in a checkpoint (the file is checked as load() checks it).
   static TrainConfig checkpoint_config(const std::string& path);
   // Starts this (new) run from a checkpoint of the same model whose scene has the same observation slots
@@ -145,6 +148,7 @@ class Trainer {
   // its arrays are read.
   CheckpointState read_checkpoint(const std::string& path,
                                   const std::function<std::string(const TrainConfig&)>& mismatch) const;
+  std::string checkpoint_payload() const;
   void rollout(IterationMetrics& m);
   void compute_targets(IterationMetrics& m);
   void update(IterationMetrics& m);

@@ -368,6 +368,47 @@ TEST(NnNetwork, ExplicitGroupsSumTheirGradientsInGroupOrder) {
                std::logic_error);
 }
 
+// A row's outputs in act() do not depend on the rows beside it (how many there are, where its chunk starts):
+// a run split over processes acts on other slices of the same rows.
+TEST(NnNetwork, ActRowsDoNotDependOnTheirChunk) {
+  const NetConfig cfg = net_preset("small");
+  ActorCritic ac(cfg);
+  ac.params().init(21);
+  const int rows = 70;
+  const ObsData data(cfg.obs, rows, 600);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  const int nl = ac.heads().num_logits(), nh = ac.heads().num_heads(), sw = ac.state_width();
+  auto logits_of = [&](int first, int n) {
+    std::vector<float> ps(static_cast<size_t>(n) * sw, 0.0f), vs = ps, logits(static_cast<size_t>(n) * nl),
+                                                              value(static_cast<size_t>(n));
+    const std::vector<float> uniforms(static_cast<size_t>(n) * nh, 0.5f);
+    std::vector<int32_t> actions(static_cast<size_t>(n) * nh);
+    ac.act(norm.view(), data.batch().rows_from(static_cast<size_t>(first), cfg.obs), n, ps.data(), vs.data(),
+           uniforms.data(), {actions.data(), nullptr, value.data(), logits.data()});
+    logits.insert(logits.end(), value.begin(), value.end());
+    logits.insert(logits.end(), ps.begin(), ps.end());
+    return logits;
+  };
+  const std::vector<float> all = logits_of(0, rows);
+  int checked = 0;
+  for (int first : {0, 3, 61, 66}) {
+    for (int n = 1; first + n <= rows && n <= 13; n += 3) {
+      const std::vector<float> part = logits_of(first, n);
+      for (int i = 0; i < n; ++i) {
+        const size_t r = static_cast<size_t>(first + i);
+        ASSERT_TRUE(same_bits(part.data() + static_cast<size_t>(i) * nl, all.data() + r * nl, nl))
+            << "logits of row " << r << " acting on rows [" << first << ", " << first + n << ")";
+        ASSERT_EQ(part[static_cast<size_t>(n) * nl + i], all[static_cast<size_t>(rows) * nl + r]) << "value";
+        ASSERT_TRUE(same_bits(part.data() + static_cast<size_t>(n) * (nl + 1) + static_cast<size_t>(i) * sw,
+                              all.data() + static_cast<size_t>(rows) * (nl + 1) + r * sw, sw))
+            << "state of row " << r;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_GT(checked, 80);
+}
+
 TEST(NnNetwork, ChunkOfTenStepsEqualsTenActSteps) {
   NetConfig cfg = net_preset("small");
   ParallelConfig par;

@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # hns train across processes (MPI): the same config gives byte-identical checkpoints and the same metrics
-# (timings aside) with one process and with 2 or 3 ranks, at any thread count; a run started with one rank
-# resumes with two bit-identically; a killed rank ends the whole job within seconds with the last checkpoint
-# intact, and the run resumes; a bad rank count is refused with exit status 2.
+# (timings aside) with one process and with 2 or 3 ranks, at any thread count, in quadrant and in full with
+# one env per rank (row counts that are not a multiple of 4); a run started with one rank resumes with two
+# bit-identically; SIGUSR1 to mpirun stops every rank after the same iteration with a checkpoint; a killed rank
+# (rank 1, then rank 0, the one that writes) ends the whole job within seconds with the last checkpoint intact,
+# and the run resumes; a bad rank count and ranks started with different configs are refused with status 2.
 # Usage: mpi_test.sh path/to/hns path/to/mpirun
 set -u
 hns="$1"
@@ -48,9 +50,27 @@ launch 3 "${args[@]}" --iterations 3 --threads 1 --out "$tmp/three" >"$tmp/three
 same_run "$tmp/one" "$tmp/two" "1 process x 2 threads vs 2 ranks x 1 thread"
 same_run "$tmp/one" "$tmp/two2" "1 process vs 2 ranks x 2 threads"
 same_run "$tmp/one" "$tmp/three" "1 process vs 3 ranks"
-grep -q "ranks 2" "$tmp/two.log" && grep -q "communication with the other ranks" "$tmp/two.log" && ok ||
+grep -q "ranks 2" "$tmp/two.log" && grep -q "communication with and waiting for the other ranks" "$tmp/two.log" && ok ||
   fail "the progress line shows the ranks and the time split the communication"
 [ "$(grep -c '^iter ' "$tmp/two.log")" -eq 3 ] && ok || fail "only rank 0 prints progress"
+
+# Full, one env per rank (6 agent rows): rows that are not a multiple of 4 in every rank's inference chunk.
+full=(train --scene full --model small --envs 3 --seed 5 --set horizon=30 --set epochs=1 --set minibatches=1
+  --set grad_groups=3)
+"$hns" "${full[@]}" --iterations 2 --threads 1 --out "$tmp/full1" >/dev/null 2>&1 || fail "full, 1 process"
+launch 3 "${full[@]}" --iterations 2 --threads 1 --out "$tmp/full3" >/dev/null 2>&1 || fail "full, 3 ranks"
+launch 2 "${full[@]}" --iterations 2 --threads 1 --out "$tmp/full2" >/dev/null 2>&1 || fail "full, 2 ranks"
+same_run_n() { cmp -s "$1/checkpoint.bin" "$2/checkpoint.bin" && [ "$(results "$1")" = "$(results "$2")" ] && ok ||
+  fail "$3: checkpoints or metrics differ"; }
+same_run_n "$tmp/full1" "$tmp/full3" "full: 1 process vs 3 ranks (1 env each)"
+same_run_n "$tmp/full1" "$tmp/full2" "full: 1 process vs 2 ranks (1 and 2 envs)"
+
+# Ranks started with different arguments (mpirun's MPMD form): refused before any training.
+out="$("$mpirun" --oversubscribe --bind-to none -np 1 "$hns" "${args[@]}" --iterations 1 --out "$tmp/mixed" : \
+  -np 1 "$hns" "${args[@]}" --iterations 1 --set lr=0.001 --out "$tmp/mixed" 2>&1)"
+rc=$?
+[ "$rc" -eq 2 ] && grep -q "rank 1 starts from another config or checkpoint" <<<"$out" && ok ||
+  fail "ranks with different configs -> exit $rc: $out"
 
 # Started with one process, resumed with two ranks: the same as the uninterrupted run.
 "$hns" "${args[@]}" --iterations 2 --threads 1 --out "$tmp/resumed" >/dev/null 2>&1 || fail "first leg"
@@ -65,35 +85,79 @@ if [ "$rc" -eq 2 ] && grep -q "4 ranks for 3 update blocks" <<<"$out" && [ ! -e 
   fail "4 ranks for 3 blocks -> exit $rc: $out"
 fi
 
-# One rank killed: every rank ends within seconds, non-zero; the last checkpoint is whole and resumes.
-launch 2 "${args[@]}" --iterations 1000 --threads 1 --set checkpoint_every=1 --out "$tmp/killed" \
-  >"$tmp/killed.log" 2>&1 &
-job=$!
-for _ in $(seq 1 300); do
-  [ -f "$tmp/killed/checkpoint.bin" ] && [ "$(grep -c '^iter ' "$tmp/killed.log")" -ge 2 ] && break
-  sleep 0.1
-done
-victim="$(pgrep -f -- "--out $tmp/killed" | grep -v "^$job\$" | tail -1)"
-start=$(date +%s)
-kill -9 "$victim" 2>/dev/null
-waited=0
-while kill -0 "$job" 2>/dev/null && [ "$waited" -lt 300 ]; do
-  sleep 0.1
-  waited=$((waited + 1))
-done
+# The rank of a process of the job started by `launch` for run folder $1 (from its environment).
+pid_of_rank() {
+  local p
+  for p in $(pgrep -f -- "--out $1\$"); do
+    if tr '\0' '\n' <"/proc/$p/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2"; then
+      echo "$p"
+      return
+    fi
+  done
+}
+# Starts a long 2-rank job into $1 and waits until it has written a checkpoint and run 2 iterations.
+start_long_job() {
+  launch 2 "${args[@]}" --iterations 100000 --threads 1 --set checkpoint_every=1 --out "$1" >"$1.log" 2>&1 &
+  job=$!
+  for _ in $(seq 1 300); do
+    [ -f "$1/checkpoint.bin" ] && [ "$(grep -c '^iter ' "$1.log" 2>/dev/null)" -ge 2 ] && break
+    sleep 0.1
+  done
+}
+# Waits up to 30 s for the job; its exit status in $rc.
+wait_job() {
+  local waited=0
+  while kill -0 "$job" 2>/dev/null && [ "$waited" -lt 300 ]; do
+    sleep 0.1
+    waited=$((waited + 1))
+  done
+  if kill -0 "$job" 2>/dev/null; then
+    fail "$1: the job still runs after 30 s"
+    pkill -9 -f -- "--out $2\$"
+  fi
+  wait "$job"
+  rc=$?
+}
+resumes() {  # resumes DIR WHAT: the run continues one more iteration from its checkpoint
+  local done_iters
+  done_iters="$(wc -l <"$1/metrics.jsonl")"
+  if "$hns" train --resume "$1" --iterations "$((done_iters + 1))" --threads 1 >"$1.after" 2>&1 &&
+    grep -q "resuming" "$1.after"; then ok; else
+    fail "$2: resume: $(tail -3 "$1.after")"
+  fi
+}
+
+# SIGUSR1 to mpirun (forwarded to every rank): all stop after the same iteration, status 130, a checkpoint.
+start_long_job "$tmp/stopped"
 if kill -0 "$job" 2>/dev/null; then
-  fail "the job still runs 30 s after one rank was killed"
-  pkill -9 -f -- "--out $tmp/killed"
+  kill -USR1 "$(pgrep -f -- "mpirun.*--out $tmp/stopped\$" | head -1)"
+  wait_job "SIGUSR1" "$tmp/stopped"
+  last="$(grep -c '^iter ' "$tmp/stopped.log")"
+  if [ "$rc" -eq 130 ] && grep -q "interrupted after iteration $last; checkpoint written" "$tmp/stopped.log"; then ok; else
+    fail "SIGUSR1: status $rc, $(tail -3 "$tmp/stopped.log")"
+  fi
+  resumes "$tmp/stopped" "SIGUSR1"
+else
+  fail "the job to stop ended early: $(tail -3 "$tmp/stopped.log")"
 fi
-wait "$job"
-rc=$?
-echo "killed rank: the job ended after $(($(date +%s) - start)) s with status $rc"
-[ "$rc" -ne 0 ] && ok || fail "a job with a killed rank exited 0"
-done_iters="$(grep -c '^iter ' "$tmp/killed.log")"
-if "$hns" train --resume "$tmp/killed" --iterations "$((done_iters + 1))" --threads 1 >"$tmp/after.log" 2>&1 &&
-  grep -q "resuming" "$tmp/after.log"; then ok; else
-  fail "resume after the kill: $(tail -3 "$tmp/after.log")"
-fi
+
+# One rank killed (rank 1, then rank 0): every rank ends within seconds, non-zero; the last checkpoint is
+# whole and the run resumes.
+for victim_rank in 1 0; do
+  dir="$tmp/killed$victim_rank"
+  start_long_job "$dir"
+  victim="$(pid_of_rank "$dir" "$victim_rank")"
+  if [ -z "$victim" ] || ! kill -0 "$job" 2>/dev/null; then
+    fail "kill rank $victim_rank: no such rank running ($(tail -2 "$dir.log"))"
+    continue
+  fi
+  start=$(date +%s)
+  kill -9 "$victim"
+  wait_job "kill rank $victim_rank" "$dir"
+  echo "killed rank $victim_rank: the job ended after $(($(date +%s) - start)) s with status $rc"
+  [ "$rc" -ne 0 ] && ok || fail "a job with a killed rank $victim_rank exited 0"
+  resumes "$dir" "kill rank $victim_rank"
+done
 
 echo "mpi_test: $passed passed, $failed failed"
 [ "$failed" -eq 0 ]
