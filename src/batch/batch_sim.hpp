@@ -26,8 +26,8 @@ using physics::AgentAction;
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
   int num_envs = 64;
-  int threads = 1;        // TBB worker threads used by step()
-  uint64_t seed = 1;      // env e's episode k is drawn from (seed, first_env + e, k)
+  int threads = 1;    // TBB worker threads used by step()
+  uint64_t seed = 1;  // env e's episode k is drawn from (seed, first_env + e, k)
   // Index of this batch's first env in a larger run (a slice of it stepped by one process): env e plays
   // exactly what env first_env + e of one batch of all the envs would.
   int64_t first_env = 0;

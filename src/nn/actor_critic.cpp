@@ -60,8 +60,8 @@ struct ActorCritic::ThreadWork {
   int steps;
   EntityNet::Work policy;
   EntityNet::Work value;
-  FloatBuffer d_logits;  // [rows, num_logits]
-  FloatBuffer d_value;   // [rows]
+  FloatBuffer d_logits;        // [rows, num_logits]
+  FloatBuffer d_value;         // [rows]
   std::vector<int32_t> index;  // [sequences] an inference chunk's rows, padded
   FloatBuffer state_p;         // [sequences, state width] its LSTM states, padded
   FloatBuffer state_v;

@@ -40,7 +40,7 @@ struct ObsBatch {
   const float* agents_present = nullptr;  // [rows, max_agents - 1] value masks, 0/1; null = all 1
   const float* boxes_present = nullptr;   // [rows, max_boxes]
   const float* ramps_present = nullptr;   // [rows, max_ramps]
-  const float* reset = nullptr;  // [rows] 1 where the LSTM states are zeroed before the step; null = never
+  const float* reset = nullptr;    // [rows] 1 where the LSTM states are zeroed before the step; null = never
   const int32_t* index = nullptr;  // [rows] the array row of each batch row; null = row r is row r
 
   // The same batch starting at row `first` (of the index, if there is one).

@@ -77,7 +77,7 @@ struct NetInputs {
   const float* agents_mask = nullptr;  // [rows, max_agents - 1], 0/1; null = all 1
   const float* boxes_mask = nullptr;   // [rows, max_boxes]
   const float* ramps_mask = nullptr;   // [rows, max_ramps]
-  const float* reset = nullptr;  // [rows], 1 where the LSTM state is zeroed before the step; null = never
+  const float* reset = nullptr;    // [rows], 1 where the LSTM state is zeroed before the step; null = never
   const int32_t* index = nullptr;  // [rows] array row of each row; null = the identity
 };
 

@@ -35,7 +35,7 @@ struct TrainConfig {
   // Minibatch size in chunks, as the paper gives it (64,000 ten-step chunks): when > 0, each epoch is split
   // into ceil(chunks / minibatch_chunks) equal minibatches and `minibatches` is not used; 0 = off.
   int minibatch_chunks = 0;
-  int bptt = 10;        // BPTT truncation: steps per chunk
+  int bptt = 10;  // BPTT truncation: steps per chunk
   // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
   // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
   int grad_groups = 8;

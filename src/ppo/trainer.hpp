@@ -166,8 +166,8 @@ class Trainer {
   int blocks_ = 0;               // K update blocks of the run
   int block0_ = 0, block1_ = 0;  // this rank's blocks [block0_, block1_)
   int env0_ = 0, env1_ = 0;      // their envs [env0_, env1_)
-  int rollout_steps_ = 0;  // T
-  int rows_ = 0;           // G = this rank's envs x max agents
+  int rollout_steps_ = 0;        // T
+  int rows_ = 0;                 // G = this rank's envs x max agents
   std::unique_ptr<batch::BatchSim> sim_;
   std::unique_ptr<nn::ActorCritic> net_;
   std::unique_ptr<nn::Adam> adam_;
@@ -178,8 +178,8 @@ class Trainer {
   int64_t agent_steps_ = 0;
   int64_t env_steps_ = 0;
   std::vector<int32_t>
-      next_episode_;  // per env of the run (every rank holds all): the next iteration's episode
-  bool need_restart_ = true;           // envs must be (re)started before the next rollout
+      next_episode_;          // per env of the run (every rank holds all): the next iteration's episode
+  bool need_restart_ = true;  // envs must be (re)started before the next rollout
   bool tracing_ = false;
   std::vector<batch::TraceEvent> trace_;
 };
