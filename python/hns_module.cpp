@@ -81,7 +81,8 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"episode", {}},
       {"box_pos_start", {B, 3}},
       {"ramp_pos_start", {R, 3}},
-      {"stat_prep", {4}},
+      {"stat_prep", {batch::Layout::kPrepStats}},
+      {"stat_run", {batch::Layout::kRunStats}},
       {"episode_return", {2}},
       {"task_target", {}},
       {"task_dist", {}},
@@ -348,9 +349,11 @@ class BatchEnv {
     const py::ssize_t n = py::ssize_t(finished.size());
     py::array_t<int32_t> env(n), episode(n), length(n);
     py::array_t<bool> discarded(n);
-    const char* float_names[] = {
-        "hider_return",       "seeker_return", "max_box_move_prep", "num_box_lock_prep", "max_ramp_move_prep",
-        "num_ramp_lock_prep", "max_box_move",  "num_box_lock",      "max_ramp_move",     "num_ramp_lock"};
+    const char* float_names[] = {"hider_return", "seeker_return",
+#define HNS_EPISODE_STAT_NAME(name, doc) #name,
+                                 HNS_EPISODE_STATS(HNS_EPISODE_STAT_NAME)
+#undef HNS_EPISODE_STAT_NAME
+    };
     std::vector<py::array_t<float>> floats;
     for (size_t k = 0; k < std::size(float_names); ++k) floats.emplace_back(n);
     for (py::ssize_t i = 0; i < n; ++i) {
@@ -359,10 +362,12 @@ class BatchEnv {
       episode.mutable_at(i) = st.episode;
       length.mutable_at(i) = st.length;
       discarded.mutable_at(i) = st.discarded;
-      const float values[] = {st.hider_return,      st.seeker_return,      st.max_box_move_prep,
-                              st.num_box_lock_prep, st.max_ramp_move_prep, st.num_ramp_lock_prep,
-                              st.max_box_move,      st.num_box_lock,       st.max_ramp_move,
-                              st.num_ramp_lock};
+      const float values[] = {st.hider_return, st.seeker_return,
+#define HNS_EPISODE_STAT_VALUE(name, doc) st.name,
+                              HNS_EPISODE_STATS(HNS_EPISODE_STAT_VALUE)
+#undef HNS_EPISODE_STAT_VALUE
+      };
+      static_assert(std::size(values) == std::size(float_names));
       for (size_t k = 0; k < std::size(float_names); ++k) floats[k].mutable_at(i) = values[k];
     }
     py::dict ended;

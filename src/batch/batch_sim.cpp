@@ -285,7 +285,10 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
   state_.episode[env] = int32_t(episode);
   state_.step_count[env] = 0;
   state_.num_walls[env] = int32_t(scene.wall_boxes.size());
-  std::fill_n(state_.stat_prep.data() + size_t(env) * 4, 4, 0.0f);
+  std::fill_n(state_.stat_prep.data() + size_t(env) * Layout::kPrepStats, Layout::kPrepStats, 0.0f);
+  float* run = state_.stat_run.data() + size_t(env) * Layout::kRunStats;
+  std::fill_n(run, Layout::kRunStats, 0.0f);
+  run[kRampWallDist] = float(physics::kFloorSize);
   std::fill_n(state_.episode_return.data() + size_t(env) * 2, 2, 0.0f);
   // Walls never move: their shapes are written once per episode.
   const size_t sb = size_t(env) * layout_.shape_boxes;
@@ -623,10 +626,13 @@ void BatchSim::rewards_env(int env) {
   float* ret = s.episode_return.data() + size_t(env) * 2;
   if (hiders > 0) ret[0] += hider_sum / hiders;
   if (n - hiders > 0) ret[1] += seeker_sum / (n - hiders);
+  if (!prep) track_env(env, any_seen);
 
   // Statistics at the end of the preparation phase (SPEC §7): when prep_obs first reads 1, after step
   // prep_steps + 1 (or at the last step of an episode too short for that).
-  if (t == std::min(wc.prep_steps() + 1, wc.horizon)) measure_env(env, s.stat_prep.data() + size_t(env) * 4);
+  if (t == std::min(wc.prep_steps() + 1, wc.horizon)) {
+    measure_env(env, s.stat_prep.data() + size_t(env) * Layout::kPrepStats);
+  }
   s.done[env] = world.done() ? 1 : 0;
 }
 
@@ -679,7 +685,7 @@ void BatchSim::lockbox_rewards_env(int env, float* reward) {
   std::fill_n(reward, L.max_agents, float(r));
 }
 
-void BatchSim::measure_env(int env, float out[4]) const {
+void BatchSim::measure_env(int env, float out[Layout::kPrepStats]) const {
   const Layout& L = layout_;
   const BatchState& s = state_;
   auto max_move = [](const float* pos, const float* start, const uint8_t* exists, int n) {
@@ -698,12 +704,105 @@ void BatchSim::measure_env(int env, float out[4]) const {
     return float(c);
   };
   const size_t b = size_t(env) * L.max_boxes, r = size_t(env) * L.max_ramps;
-  out[0] = max_move(s.box_pos.data() + (3 * b), s.box_pos_start.data() + (3 * b), s.box_exists.data() + b,
-                    L.max_boxes);
-  out[1] = count(s.box_locked.data() + b, L.max_boxes);
-  out[2] = max_move(s.ramp_pos.data() + (3 * r), s.ramp_pos_start.data() + (3 * r), s.ramp_exists.data() + r,
-                    L.max_ramps);
-  out[3] = count(s.ramp_locked.data() + r, L.max_ramps);
+  out[kBoxMove] = max_move(s.box_pos.data() + (3 * b), s.box_pos_start.data() + (3 * b),
+                           s.box_exists.data() + b, L.max_boxes);
+  out[kBoxLock] = count(s.box_locked.data() + b, L.max_boxes);
+  out[kRampMove] = max_move(s.ramp_pos.data() + (3 * r), s.ramp_pos_start.data() + (3 * r),
+                            s.ramp_exists.data() + r, L.max_ramps);
+  out[kRampLock] = count(s.ramp_locked.data() + r, L.max_ramps);
+
+  // Doors sealed by the locked boxes (stage_stats.hpp). At most kMaxSealBoxes boxes are looked at: far more
+  // than any scene the presets build.
+  constexpr int kMaxSealBoxes = 32;
+  Footprint locked[kMaxSealBoxes];
+  int num_locked = 0;
+  for (int k = 0; k < L.max_boxes && num_locked < kMaxSealBoxes; ++k) {
+    if (s.box_exists[b + k] == 0 || s.box_locked[b + k] == 0) continue;
+    locked[num_locked++] = box_footprint(env, k);
+  }
+  const physics::Scene& scene = worlds_[env]->scene();
+  int sealed = 0;
+  for (const physics::DoorCells& door : scene.doors) {
+    sealed +=
+        door_sealed(door_gap(scene, door), std::span<const Footprint>(locked, size_t(num_locked))) ? 1 : 0;
+  }
+  out[kDoorsSealed] = float(sealed);
+  bool in_room = false;
+  if (scene.layout == physics::Layout::kQuadrant) {
+    const Rect room = quadrant_room();
+    for (int k = 0; k < L.max_ramps; ++k) {
+      const float* p = s.ramp_pos.data() + 3 * (r + k);
+      in_room = in_room || (s.ramp_exists[r + k] != 0 && room.contains(p[0], p[1]));
+    }
+  }
+  out[kRampInRoom] = in_room ? 1.0f : 0.0f;
+}
+
+Footprint BatchSim::box_footprint(int env, int box) const {
+  const size_t i = size_t(env) * layout_.max_boxes + box;
+  const BatchState& s = state_;
+  return Footprint{s.box_pos[3 * i],     s.box_pos[3 * i + 1],     s.box_rot[2 * i],
+                   s.box_rot[2 * i + 1], 0.5f * s.box_size[3 * i], 0.5f * s.box_size[3 * i + 1]};
+}
+
+// The seeking phase's running statistics (stat_run), from this step's mirror and vision.
+void BatchSim::track_env(int env, bool any_seen) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const physics::World& world = *worlds_[env];
+  const int n = world.num_agents(), A = L.max_agents;
+  float* run = s.stat_run.data() + size_t(env) * Layout::kRunStats;
+  const size_t ea = size_t(env) * A;
+  const float* pos = s.agent_pos.data() + 3 * ea;
+  const float* vel = s.agent_vel.data() + 3 * ea;
+  const uint8_t* hider = s.agent_hider.data() + ea;
+  const uint8_t* vis = s.vis_agents.data() + ea * A;
+  run[kSeekSteps] += 1.0f;
+  run[kSeenSteps] += any_seen ? 1.0f : 0.0f;
+
+  // Ramps against the interior walls (the 0.5 m ones; outer walls are 4 m high).
+  const physics::Scene& scene = world.scene();
+  for (int r = 0; r < world.num_ramps(); ++r) {
+    const size_t i = size_t(env) * L.max_ramps + r;
+    const Footprint ramp{
+        s.ramp_pos[3 * i],     s.ramp_pos[3 * i + 1],           s.ramp_rot[2 * i],
+        s.ramp_rot[2 * i + 1], float(0.5 * physics::kRampSize), float(0.5 * physics::kRampSize)};
+    for (const physics::StaticBox& w : scene.wall_boxes) {
+      if (2.0 * w.hz > physics::kInteriorWallHeight + 1e-6) continue;
+      run[kRampWallDist] = std::min(run[kRampWallDist], footprint_distance(ramp, footprint_of(w)));
+    }
+  }
+
+  bool surfing = false;
+  for (int sk = 0; sk < n; ++sk) {
+    if (hider[sk] != 0) continue;
+    const float* p = pos + 3 * sk;
+    // Approach: the seeker's horizontal velocity towards its nearest hider.
+    int nearest = -1;
+    float best = 0.0f;
+    bool sees_hider = false;
+    for (int h = 0; h < n; ++h) {
+      if (hider[h] == 0) continue;
+      sees_hider = sees_hider || vis[sk * A + h] != 0;
+      const float d = std::hypot(pos[3 * h] - p[0], pos[3 * h + 1] - p[1]);
+      if (nearest < 0 || d < best) nearest = h, best = d;
+    }
+    if (nearest >= 0 && best > 1e-6f) {
+      const float* q = pos + 3 * nearest;
+      run[kApproachSum] += (vel[3 * sk] * (q[0] - p[0]) + vel[3 * sk + 1] * (q[1] - p[1])) / best;
+      run[kApproachCount] += 1.0f;
+    }
+    if (sees_hider && p[2] > kHighAgentZ) run[kHighSeen] = 1.0f;
+    // Surfing: standing on a box that slides.
+    for (int k = 0; k < world.num_boxes() && !surfing; ++k) {
+      const size_t i = size_t(env) * L.max_boxes + k;
+      const float* v = s.box_vel.data() + 3 * i;
+      if (std::hypot(v[0], v[1]) < kSurfSpeed) continue;
+      const float top = s.box_pos[3 * i + 2] + 0.5f * s.box_size[3 * i + 2];
+      surfing = stands_on(box_footprint(env, k), top, p[0], p[1], p[2]);
+    }
+  }
+  run[kSurfSteps] += surfing ? 1.0f : 0.0f;
 }
 
 // Records the finished episode's statistics and starts the env's next episode.
@@ -711,8 +810,9 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   BatchState& s = state_;
   EnvScratch& sc = scratch_[env];
   EpisodeStats& st = sc.stats;
-  const float* prep = s.stat_prep.data() + size_t(env) * 4;
-  float end[4];
+  const float* prep = s.stat_prep.data() + size_t(env) * Layout::kPrepStats;
+  const float* run = s.stat_run.data() + size_t(env) * Layout::kRunStats;
+  float end[Layout::kPrepStats];
   measure_env(env, end);
   st.env = env;
   st.episode = s.episode[env];
@@ -720,14 +820,23 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   st.discarded = discarded;
   st.hider_return = s.episode_return[size_t(env) * 2];
   st.seeker_return = s.episode_return[size_t(env) * 2 + 1];
-  st.max_box_move_prep = prep[0];
-  st.num_box_lock_prep = prep[1];
-  st.max_ramp_move_prep = prep[2];
-  st.num_ramp_lock_prep = prep[3];
-  st.max_box_move = end[0];
-  st.num_box_lock = end[1];
-  st.max_ramp_move = end[2];
-  st.num_ramp_lock = end[3];
+  st.max_box_move_prep = prep[kBoxMove];
+  st.num_box_lock_prep = prep[kBoxLock];
+  st.max_ramp_move_prep = prep[kRampMove];
+  st.num_ramp_lock_prep = prep[kRampLock];
+  st.max_box_move = end[kBoxMove];
+  st.num_box_lock = end[kBoxLock];
+  st.max_ramp_move = end[kRampMove];
+  st.num_ramp_lock = end[kRampLock];
+  st.num_doors = float(worlds_[env]->scene().doors.size());
+  st.num_door_sealed_prep = prep[kDoorsSealed];
+  st.num_door_sealed = end[kDoorsSealed];
+  st.hider_seen_frac = run[kSeekSteps] > 0 ? run[kSeenSteps] / run[kSeekSteps] : 0.0f;
+  st.seeker_approach = run[kApproachCount] > 0 ? run[kApproachSum] / run[kApproachCount] : 0.0f;
+  st.ramp_wall_dist = run[kRampWallDist];
+  st.seeker_high_seen = run[kHighSeen];
+  st.ramp_in_room_prep = prep[kRampInRoom];
+  st.box_surf = run[kSurfSteps] >= float(kSurfSteps) ? 1.0f : 0.0f;
   sc.finished = true;
   reset_env(env, uint64_t(s.episode[env]) + 1);
   s.done[env] = 1;

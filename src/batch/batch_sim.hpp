@@ -17,6 +17,7 @@
 
 #include "batch/aligned_buffer.hpp"
 #include "batch/ray_kernels.hpp"
+#include "batch/stage_stats.hpp"
 #include "physics/world.hpp"
 
 namespace hns::batch {
@@ -55,6 +56,8 @@ struct Layout {
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
   static constexpr int kLidar = 30;
   static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
+  static constexpr int kPrepStats = 6;        // BatchSim::Measured
+  static constexpr int kRunStats = 7;         // BatchSim::Running
 
   // The sizes of a batch of this config.
   static Layout of(const BatchConfig& config);
@@ -119,7 +122,8 @@ struct Layout {
   /* Episode statistics (SPEC §7). */                                                                     \
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                        \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
-  X(float, stat_prep, 4, "at the end of prep: max box move, boxes locked, max ramp move, ramps locked")    \
+  X(float, stat_prep, Layout::kPrepStats, "measured at the end of prep (BatchSim::measure_env)")           \
+  X(float, stat_run, Layout::kRunStats, "running stage statistics of the seeking phase (rewards_env)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
   /* Box-locking task (WorldConfig::Task::kLockBox, SPEC §9.2). */                                        \
   X(int32_t, task_target, 1, "box the agent is sent to, -1 when all are locked (envs)")                    \
@@ -156,7 +160,29 @@ struct BatchState {
   }
 };
 
-// Statistics of one finished episode (SPEC §7), reported by the step that ended it.
+// Per-episode statistics after the returns, in this order: X(name, doc). SPEC §7's eight, then the direct
+// stage detectors (docs/training.md "Stages"). Each is a float of EpisodeStats, the mean over an
+// iteration's episodes in metrics.jsonl, and a key of the Python module's finished episodes.
+#define HNS_EPISODE_STATS(X)                                                                                \
+  X(max_box_move_prep, "m, largest box displacement from its spawn at the end of the preparation phase")    \
+  X(num_box_lock_prep, "boxes locked at the end of the preparation phase")                                  \
+  X(max_ramp_move_prep, "m, largest ramp displacement at the end of the preparation phase")                 \
+  X(num_ramp_lock_prep, "ramps locked at the end of the preparation phase")                                 \
+  X(max_box_move, "m, largest box displacement at the end of the episode")                                  \
+  X(num_box_lock, "boxes locked at the end of the episode")                                                 \
+  X(max_ramp_move, "m, largest ramp displacement at the end of the episode")                                \
+  X(num_ramp_lock, "ramps locked at the end of the episode")                                                \
+  X(num_doors, "doors in the episode's walls")                                                              \
+  X(num_door_sealed_prep, "doors sealed by locked boxes at the end of the preparation phase (door_sealed)") \
+  X(num_door_sealed, "doors sealed by locked boxes at the end of the episode")                              \
+  X(hider_seen_frac, "fraction of the seeking phase's steps in which a seeker saw a hider")                 \
+  X(seeker_approach, "m/s, seekers' mean horizontal speed towards their nearest hider, seeking phase")      \
+  X(ramp_wall_dist, "m, closest a ramp came to an interior wall in the seeking phase (6: no such wall)")    \
+  X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
+  X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
+  X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")
+
+// Statistics of one finished episode, reported by the step that ended it.
 struct EpisodeStats {
   int env = 0;
   int episode = 0;
@@ -164,14 +190,9 @@ struct EpisodeStats {
   bool discarded = false;  // ended early by numerical trouble
   float hider_return = 0;  // summed mean hider reward
   float seeker_return = 0;
-  float max_box_move_prep = 0;  // m, at the end of the preparation phase
-  float num_box_lock_prep = 0;
-  float max_ramp_move_prep = 0;
-  float num_ramp_lock_prep = 0;
-  float max_box_move = 0;  // m, at the end of the episode
-  float num_box_lock = 0;
-  float max_ramp_move = 0;
-  float num_ramp_lock = 0;
+#define HNS_DECLARE_EPISODE_STAT(name, doc) float name = 0;
+  HNS_EPISODE_STATS(HNS_DECLARE_EPISODE_STAT)
+#undef HNS_DECLARE_EPISODE_STAT
 };
 
 // Seconds of thread time spent per phase since the last reset_timers(), summed over envs.
@@ -258,8 +279,15 @@ class BatchSim {
   void lockbox_retarget(int env);                    // nearest unlocked box and its distance
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
-  // Max box move (m), boxes locked, max ramp move (m), ramps locked, from the mirror (SPEC §7).
-  void measure_env(int env, float out[4]) const;
+  // What the episode statistics read from the mirror at the end of prep and of the episode: SPEC §7's
+  // max box move (m), boxes locked, max ramp move (m), ramps locked, then the doors sealed by locked boxes
+  // and whether a ramp is in the quadrant room (stage_stats.hpp).
+  enum Measured { kBoxMove, kBoxLock, kRampMove, kRampLock, kDoorsSealed, kRampInRoom };
+  void measure_env(int env, float out[Layout::kPrepStats]) const;
+  // Running statistics of the seeking phase, updated every step after vision (stat_run).
+  enum Running { kRampWallDist, kHighSeen, kSeenSteps, kSeekSteps, kApproachSum, kApproachCount, kSurfSteps };
+  void track_env(int env, bool any_seen);
+  Footprint box_footprint(int env, int box) const;
   void collect_finished();
 
   BatchConfig config_;

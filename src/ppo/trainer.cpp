@@ -31,8 +31,10 @@ constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
 constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
 
 constexpr int kNumStats = kNumPpoStats;
-// Per update block: episodes, then the sums of hider and seeker returns and of the eight SPEC §7 statistics.
-constexpr int kBlockEpisodeValues = 11;
+// Per update block: episodes, then the sums of hider and seeker returns and of the HNS_EPISODE_STATS.
+#define HNS_COUNT_EPISODE_STAT(name, doc) +1
+constexpr int kBlockEpisodeValues = 3 HNS_EPISODE_STATS(HNS_COUNT_EPISODE_STAT);
+#undef HNS_COUNT_EPISODE_STAT
 
 float uniform_float(physics::Rng& rng) {
   return float(rng.next_u64() >> 40) * 0x1.0p-24f;
@@ -93,33 +95,54 @@ struct Trainer::Buffers {
   std::vector<nn::ObsNormalizer::Sums> block_obs_sums;    // [this rank's blocks]
   std::vector<nn::ObsNormalizer::Sums> episode_obs_sums;  // [this rank's envs]
   // Per block of this rank: episodes that ended, then the sums of their hider and seeker returns and of the
-  // eight SPEC §7 statistics (kBlockEpisodeValues doubles each).
+  // HNS_EPISODE_STATS (kBlockEpisodeValues doubles each).
   std::vector<double> block_episodes;
   tbb::enumerable_thread_specific<PpoLossScratch> loss_scratch;  // per thread
 };
 
 std::string IterationMetrics::to_json() const {
-  char buf[2048];
-  std::snprintf(
-      buf, sizeof buf,
-      "{\"iteration\": %lld, \"agent_steps\": %lld, \"env_steps\": %lld, \"seconds\": %.4f, "
-      "\"steps_per_s\": %.1f, \"episodes\": %d, \"hider_reward\": %.6g, \"seeker_reward\": %.6g, "
-      "\"max_box_move_prep\": %.6g, \"num_box_lock_prep\": %.6g, \"max_ramp_move_prep\": %.6g, "
-      "\"num_ramp_lock_prep\": %.6g, \"max_box_move\": %.6g, \"num_box_lock\": %.6g, \"max_ramp_move\": "
-      "%.6g, "
-      "\"num_ramp_lock\": %.6g, \"policy_loss\": %.6g, \"value_loss\": %.6g, \"entropy\": %.6g, "
-      "\"approx_kl\": %.6g, \"clip_frac\": %.6g, \"explained_variance\": %.6g, \"grad_norm\": %.6g, "
-      "\"value_mean\": %.6g, \"value_std\": %.6g, \"time_simulate\": %.4f, \"time_observe\": %.4f, "
-      "\"time_infer\": %.4f, \"time_learn\": %.4f, \"time_targets\": %.4f, \"time_backward\": %.4f, "
-      "\"time_optimizer\": %.4f, \"time_other\": %.4f, \"time_comm\": %.4f, "
-      "\"unstable_resets\": %lld}",
-      static_cast<long long>(iteration), static_cast<long long>(agent_steps),
-      static_cast<long long>(env_steps), seconds, steps_per_s, episodes, hider_reward, seeker_reward,
-      max_box_move_prep, num_box_lock_prep, max_ramp_move_prep, num_ramp_lock_prep, max_box_move,
-      num_box_lock, max_ramp_move, num_ramp_lock, policy_loss, value_loss, entropy, approx_kl, clip_frac,
-      explained_variance, grad_norm, value_mean, value_std, t_simulate, t_observe, t_infer, t_learn,
-      t_targets, t_backward, t_optimizer, t_other, t_comm, static_cast<long long>(unstable_resets));
-  return buf;
+  std::string out;
+  out.reserve(2048);
+  char buf[96];
+  auto add = [&](const char* key, const char* format, auto value) {
+    std::snprintf(buf, sizeof buf, format, value);
+    out += out.empty() ? "{\"" : ", \"";
+    out += key;
+    out += "\": ";
+    out += buf;
+  };
+  add("iteration", "%lld", static_cast<long long>(iteration));
+  add("agent_steps", "%lld", static_cast<long long>(agent_steps));
+  add("env_steps", "%lld", static_cast<long long>(env_steps));
+  add("seconds", "%.4f", seconds);
+  add("steps_per_s", "%.1f", steps_per_s);
+  add("episodes", "%d", episodes);
+  add("hider_reward", "%.6g", hider_reward);
+  add("seeker_reward", "%.6g", seeker_reward);
+#define HNS_ADD_EPISODE_MEAN(name, doc) add(#name, "%.6g", name);
+  HNS_EPISODE_STATS(HNS_ADD_EPISODE_MEAN)
+#undef HNS_ADD_EPISODE_MEAN
+  add("policy_loss", "%.6g", policy_loss);
+  add("value_loss", "%.6g", value_loss);
+  add("entropy", "%.6g", entropy);
+  add("approx_kl", "%.6g", approx_kl);
+  add("clip_frac", "%.6g", clip_frac);
+  add("explained_variance", "%.6g", explained_variance);
+  add("grad_norm", "%.6g", grad_norm);
+  add("value_mean", "%.6g", value_mean);
+  add("value_std", "%.6g", value_std);
+  add("time_simulate", "%.4f", t_simulate);
+  add("time_observe", "%.4f", t_observe);
+  add("time_infer", "%.4f", t_infer);
+  add("time_learn", "%.4f", t_learn);
+  add("time_targets", "%.4f", t_targets);
+  add("time_backward", "%.4f", t_backward);
+  add("time_optimizer", "%.4f", t_optimizer);
+  add("time_other", "%.4f", t_other);
+  add("time_comm", "%.4f", t_comm);
+  add("unstable_resets", "%lld", static_cast<long long>(unstable_resets));
+  out += "}";
+  return out;
 }
 
 Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std::make_unique<Buffers>()) {
@@ -387,17 +410,11 @@ void Trainer::rollout(IterationMetrics& m) {
         }
         continue;
       }
-      const float v[kBlockEpisodeValues] = {1.0f,
-                                            st.hider_return,
-                                            st.seeker_return,
-                                            st.max_box_move_prep,
-                                            st.num_box_lock_prep,
-                                            st.max_ramp_move_prep,
-                                            st.num_ramp_lock_prep,
-                                            st.max_box_move,
-                                            st.num_box_lock,
-                                            st.max_ramp_move,
-                                            st.num_ramp_lock};
+      const float v[kBlockEpisodeValues] = {1.0f, st.hider_return, st.seeker_return,
+#define HNS_EPISODE_VALUE(name, doc) st.name,
+                                            HNS_EPISODE_STATS(HNS_EPISODE_VALUE)
+#undef HNS_EPISODE_VALUE
+      };
       double* sums = b.block_episodes.data() + size_t(blk) * kBlockEpisodeValues;
       for (int k = 0; k < kBlockEpisodeValues; ++k) sums[k] += v[k];
     }
@@ -431,10 +448,11 @@ void Trainer::rollout(IterationMetrics& m) {
   const double episodes = totals[0];
   m.episodes = int(episodes);
   if (episodes > 0) {
-    double* dst[kBlockEpisodeValues - 1] = {
-        &m.hider_reward,       &m.seeker_reward,      &m.max_box_move_prep, &m.num_box_lock_prep,
-        &m.max_ramp_move_prep, &m.num_ramp_lock_prep, &m.max_box_move,      &m.num_box_lock,
-        &m.max_ramp_move,      &m.num_ramp_lock};
+    double* dst[kBlockEpisodeValues - 1] = {&m.hider_reward, &m.seeker_reward,
+#define HNS_EPISODE_MEAN(name, doc) &m.name,
+                                            HNS_EPISODE_STATS(HNS_EPISODE_MEAN)
+#undef HNS_EPISODE_MEAN
+    };
     for (int k = 1; k < kBlockEpisodeValues; ++k) *dst[k - 1] = totals[k] / episodes;
   }
 }

@@ -61,8 +61,10 @@ struct IterationMetrics {
   // Episodes that ended during the iteration (means over them).
   int episodes = 0;
   double hider_reward = 0, seeker_reward = 0;  // episode returns: summed mean reward per team
-  double max_box_move_prep = 0, num_box_lock_prep = 0, max_ramp_move_prep = 0, num_ramp_lock_prep = 0;
-  double max_box_move = 0, num_box_lock = 0, max_ramp_move = 0, num_ramp_lock = 0;
+  // The per-episode statistics of batch::EpisodeStats (SPEC §7 and the stage detectors), same names.
+#define HNS_DECLARE_EPISODE_MEAN(name, doc) double name = 0;
+  HNS_EPISODE_STATS(HNS_DECLARE_EPISODE_MEAN)
+#undef HNS_DECLARE_EPISODE_MEAN
   // Update diagnostics (means over minibatches).
   double policy_loss = 0, value_loss = 0, entropy = 0, approx_kl = 0, clip_frac = 0;
   double explained_variance = 0, grad_norm = 0;

@@ -1,0 +1,274 @@
+// The stage detectors (docs/training.md "Stages"): their geometry on hand-made footprints, and the episode
+// statistics BatchSim reports on staged episodes (a fort with both doors sealed, a seeker looking over a wall
+// from a box) and under a random policy (no fort, on average).
+#include "batch/stage_stats.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "batch/batch_sim.hpp"
+#include "physics/rng.hpp"
+
+namespace hns::batch {
+namespace {
+
+using physics::Scene;
+using physics::Spawn;
+
+constexpr double kPi = 3.14159265358979323846;
+
+Footprint square(float x, float y, float half, float yaw = 0.0f) {
+  return Footprint{x, y, std::cos(yaw), std::sin(yaw), half, half};
+}
+
+TEST(StageGeometry, FootprintDistance) {
+  EXPECT_NEAR(footprint_distance(square(1, 1, 0.25f), square(2.5f, 1, 0.25f)), 1.0f, 1e-6);
+  EXPECT_NEAR(footprint_distance(square(1, 1, 0.25f), square(2, 2, 0.25f)), std::sqrt(0.5f), 1e-6)
+      << "corner to corner";
+  EXPECT_EQ(footprint_distance(square(1, 1, 0.25f), square(1.3f, 1.1f, 0.25f)), 0.0f) << "overlapping";
+  // A square turned 45 degrees points a corner (0.25 * sqrt 2 from its centre) at a wall face.
+  const Footprint wall{3.1f, 3.0f, 1, 0, 0.05f, 2.0f};
+  EXPECT_NEAR(footprint_distance(square(2.5f, 3.0f, 0.25f, float(kPi / 4)), wall),
+              3.05f - 2.5f - 0.25f * std::sqrt(2.0f), 1e-5);
+}
+
+TEST(StageGeometry, StandsOnTheTopOfABoxOnly) {
+  const Footprint box = square(2, 2, 0.25f);
+  EXPECT_TRUE(stands_on(box, 0.5f, 2.1f, 1.9f, 0.65f));
+  EXPECT_FALSE(stands_on(box, 0.5f, 2.1f, 1.9f, 0.15f)) << "on the floor beside it";
+  EXPECT_FALSE(stands_on(box, 0.5f, 2.4f, 1.9f, 0.65f)) << "beside its footprint";
+}
+
+// A door in a wall along y at x = 3.1, open over y in [1.0, 1.7] (2 cells plus the wall pieces' ends).
+DoorGap test_gap() {
+  DoorGap g;
+  g.axis = 1;
+  g.line = 3.1f;
+  g.half_thickness = 0.05f;
+  g.lo = 1.0f;
+  g.hi = 1.7f;
+  return g;
+}
+
+TEST(StageGeometry, ACubeAgainstTheDoorSealsIt) {
+  const DoorGap g = test_gap();
+  const float inside = 3.1f + 0.05f + 0.25f + 0.02f, outside = 3.1f - 0.05f - 0.25f - 0.02f;
+  EXPECT_FALSE(door_sealed(g, {})) << "an empty door is open";
+  const Footprint centred[] = {square(inside, 1.35f, 0.25f)};
+  EXPECT_TRUE(door_sealed(g, centred)) << "0.1 m left on either side: no agent (0.3 m) passes";
+  const Footprint outer[] = {square(outside, 1.35f, 0.25f)};
+  EXPECT_TRUE(door_sealed(g, outer)) << "from the other side as well";
+  const Footprint in_opening[] = {square(3.1f, 1.35f, 0.25f)};
+  EXPECT_TRUE(door_sealed(g, in_opening));
+  const Footprint shifted[] = {square(inside, 1.65f, 0.25f)};
+  EXPECT_FALSE(door_sealed(g, shifted)) << "0.4 m of the opening left free";
+  const Footprint away[] = {square(inside + 0.32f, 1.35f, 0.25f)};
+  EXPECT_FALSE(door_sealed(g, away)) << "an agent fits between the box and the wall";
+  const Footprint turned[] = {square(inside + 0.1f, 1.35f, 0.25f, float(kPi / 4))};
+  EXPECT_TRUE(door_sealed(g, turned)) << "a turned cube's corner covers the opening too";
+}
+
+TEST(StageGeometry, BoxesSealFromOneSideNotHalfFromEach) {
+  DoorGap g = test_gap();
+  g.hi = 2.2f;  // a 1.2 m opening
+  const float inside = 3.42f, outside = 2.78f;
+  const Footprint both_inside[] = {square(inside, 1.15f, 0.25f), square(inside, 1.85f, 0.25f)};
+  EXPECT_TRUE(door_sealed(g, both_inside)) << "gaps of 0.2 and 0.1 m";
+  EXPECT_FALSE(door_sealed(g, std::span<const Footprint>(both_inside, 1))) << "one cube leaves 0.55 m";
+  // One cube on each side: each side alone leaves a passable stretch; an agent weaves through.
+  const Footprint split[] = {square(inside, 1.15f, 0.25f), square(outside, 1.85f, 0.25f)};
+  EXPECT_FALSE(door_sealed(g, split));
+}
+
+// The quadrant game with both doors (no dropout) and its horizon and preparation phase.
+BatchConfig quadrant_config(int envs) {
+  BatchConfig c;
+  c.world = physics::WorldConfig::quadrant();
+  c.world.scene.p_door_dropout = 0.0;
+  c.num_envs = envs;
+  return c;
+}
+
+// Stages a fort: takes the env's quadrant scene, puts a cube against each door inside the room with a
+// hider behind it facing it, both seekers outside in the far corner and the ramp at `ramp`. Returns the
+// scene's door gaps.
+std::vector<DoorGap> stage_fort(BatchSim& sim, double ramp_x, double ramp_y) {
+  // An episode whose doors are clear of the room's corners, so cubes and hiders fit in front of them.
+  physics::World& world = sim.mutable_world(0);
+  Scene scene;
+  std::vector<DoorGap> gaps;
+  for (uint64_t episode = 0;; ++episode) {
+    world.reset(episode);
+    scene = world.scene();
+    gaps.clear();
+    // Cubes and hiders must fit inside the room in front of each door and miss each other.
+    float along_y = -1, along_x = -1;  // door centres on the vertical and on the horizontal room wall
+    for (const physics::DoorCells& d : scene.doors) {
+      gaps.push_back(door_gap(scene, d));
+      (gaps.back().axis == 1 ? along_y : along_x) = 0.5f * (gaps.back().lo + gaps.back().hi);
+    }
+    const bool clear = scene.doors.size() == 2 && along_y > 0.6f && along_y < 2.5f && along_x > 3.7f &&
+                       along_x < 5.3f && (along_y < 2.0f || along_x > 4.3f);
+    if (clear) break;
+    EXPECT_LT(episode, 200u) << "no quadrant scene with two doors clear of the corners";
+    if (episode >= 200) return {};
+  }
+  scene.agents.clear();
+  scene.boxes.clear();
+  std::vector<double> yaws;
+  for (const DoorGap& g : gaps) {
+    const double mid = 0.5 * (g.lo + g.hi);
+    // Inside the room: +x of the vertical wall, -y of the horizontal one.
+    const double box = g.axis == 1 ? g.line + 0.05 + 0.25 + 0.03 : g.line - 0.05 - 0.25 - 0.03;
+    const double agent = g.axis == 1 ? box + 0.25 + 0.15 + 0.05 : box - 0.25 - 0.15 - 0.05;
+    scene.boxes.push_back(g.axis == 1 ? Spawn{box, mid, 0.25, 0.5, 0.5, 0.5}
+                                      : Spawn{mid, box, 0.25, 0.5, 0.5, 0.5});
+    scene.agents.push_back(g.axis == 1 ? Spawn{agent, mid, 0.15, 0.3, 0.3, 0.3}
+                                       : Spawn{mid, agent, 0.15, 0.3, 0.3, 0.3});
+    yaws.push_back(g.axis == 1 ? -kPi / 2 : kPi);  // face -x (the vertical wall's box), +y (the other's)
+  }
+  scene.agents.push_back(Spawn{0.8, 5.2, 0.15, 0.3, 0.3, 0.3});
+  scene.agents.push_back(Spawn{1.4, 5.2, 0.15, 0.3, 0.3, 0.3});
+  scene.num_hiders = scene.num_seekers = 2;
+  scene.ramps = {Spawn{ramp_x, ramp_y, 0.25, 0.5, 0.5, 0.5}};
+  sim.load_scene(0, scene);
+  for (int h = 0; h < 2; ++h) {
+    const Spawn& a = scene.agents[size_t(h)];
+    sim.mutable_world(0).set_agent_pose(h, a.x, a.y, a.z, yaws[size_t(h)]);
+  }
+  sim.resync(0);
+  return gaps;
+}
+
+// Plays env 0 to the end of its episode; the agents in `lockers` hold lock down throughout (the lock team
+// unlocks a box it sees in range without pressing lock, SPEC §3.4).
+EpisodeStats play_episode(BatchSim& sim, std::vector<int> lockers) {
+  std::vector<AgentAction> acts(size_t(sim.layout().max_agents));
+  for (int h : lockers) acts[size_t(h)].lock = 1;
+  for (int t = 0; t < 1000; ++t) {
+    sim.step(acts);
+    if (!sim.finished().empty()) return sim.finished()[0];
+  }
+  ADD_FAILURE() << "the episode did not end";
+  return {};
+}
+
+TEST(StageDetectors, StagedFortWithBothDoorsSealedCountsTwo) {
+  BatchSim sim(quadrant_config(1));
+  ASSERT_EQ(stage_fort(sim, 5.2, 0.8).size(), 2u);
+  const EpisodeStats st = play_episode(sim, {0, 1});
+  EXPECT_EQ(st.num_box_lock_prep, 2.0f);
+  EXPECT_EQ(st.num_doors, 2.0f);
+  EXPECT_EQ(st.num_door_sealed_prep, 2.0f);
+  EXPECT_EQ(st.num_door_sealed, 2.0f);
+  EXPECT_EQ(st.ramp_in_room_prep, 1.0f) << "the ramp stands in the room";
+  EXPECT_EQ(st.hider_seen_frac, 0.0f) << "nobody sees into a sealed room from the floor";
+  EXPECT_EQ(st.seeker_high_seen, 0.0f);
+  EXPECT_EQ(st.box_surf, 0.0f);
+}
+
+TEST(StageDetectors, OneLockedCubeSealsOneDoorAndAnUnlockedOneNone) {
+  BatchSim sim(quadrant_config(1));
+  ASSERT_EQ(stage_fort(sim, 1.0, 1.0).size(), 2u);
+  EpisodeStats st = play_episode(sim, {1});
+  EXPECT_EQ(st.num_box_lock_prep, 1.0f);
+  EXPECT_EQ(st.num_door_sealed_prep, 1.0f);
+  EXPECT_EQ(st.ramp_in_room_prep, 0.0f) << "the ramp is outside the room";
+  ASSERT_EQ(stage_fort(sim, 1.0, 1.0).size(), 2u);
+  st = play_episode(sim, {});
+  EXPECT_EQ(st.num_door_sealed_prep, 0.0f) << "cubes in place but unlocked seal nothing";
+}
+
+// One hider, one seeker, up to one box and one ramp, no walls and no preparation phase.
+BatchConfig one_on_one(int horizon) {
+  BatchConfig c;
+  c.world = physics::WorldConfig::empty();
+  c.world.prep_fraction = 0.0;
+  c.world.horizon = horizon;
+  c.world.penalize_objects_out = false;
+  c.world.scene.boxes = c.world.scene.ramps = {0, 1};
+  c.world.scene.hiders = c.world.scene.seekers = {1, 1};
+  c.num_envs = 1;
+  return c;
+}
+
+// A seeker on a cube behind a 0.5 m wall sees the hider beyond it: it stood higher than a wall while a
+// hider was seen. From the floor it sees nothing.
+TEST(StageDetectors, SeekerOnABoxSeeingOverAWall) {
+  BatchSim sim(one_on_one(4));
+  Scene scene;
+  scene.num_hiders = scene.num_seekers = 1;
+  scene.wall_boxes = {physics::StaticBox{3.0, 3.2, 0.25, 1.0, 0.05, 0.25}};
+  scene.agents = {Spawn{3.0, 1.5, 0.15, 0.3, 0.3, 0.3}, Spawn{3.0, 3.5, 0.65, 0.3, 0.3, 0.3}};
+  scene.boxes = {Spawn{3.0, 3.5, 0.25, 0.5, 0.5, 0.5}};
+  sim.load_scene(0, scene);
+  EpisodeStats st = play_episode(sim, {});
+  EXPECT_EQ(st.seeker_high_seen, 1.0f);
+  EXPECT_EQ(st.hider_seen_frac, 1.0f);
+  EXPECT_NEAR(st.ramp_wall_dist, 6.0f, 1e-6) << "no ramp: nothing came near a wall";
+  scene.agents[1].z = 0.15;
+  scene.boxes.clear();
+  scene.ramps = {Spawn{3.0, 4.0, 0.25, 0.5, 0.5, 0.5}};
+  sim.load_scene(0, scene);
+  st = play_episode(sim, {});
+  EXPECT_EQ(st.seeker_high_seen, 0.0f);
+  EXPECT_EQ(st.hider_seen_frac, 0.0f);
+  EXPECT_NEAR(st.ramp_wall_dist, 4.0 - 0.25 - 3.25, 0.02) << "the ramp's near edge to the wall's face";
+}
+
+// A seeker running at a hider approaches it at about its running speed; running away, at minus that.
+TEST(StageDetectors, SeekerApproachIsItsSpeedTowardsTheNearestHider) {
+  for (int dir : {+1, -1}) {
+    BatchSim sim(one_on_one(6));
+    Scene scene;
+    scene.num_hiders = scene.num_seekers = 1;
+    scene.agents = {Spawn{5.0, 3.0, 0.15, 0.3, 0.3, 0.3}, Spawn{2.5, 3.0, 0.15, 0.3, 0.3, 0.3}};
+    sim.load_scene(0, scene);
+    std::vector<AgentAction> acts(size_t(sim.layout().max_agents));
+    acts[1].move_x = dir > 0 ? 10 : 0;  // the seeker runs along +x (towards the hider) or -x
+    EpisodeStats st;
+    for (int t = 0; t < 6; ++t) sim.step(acts);
+    ASSERT_EQ(sim.finished().size(), 1u);
+    st = sim.finished()[0];
+    EXPECT_GT(dir * st.seeker_approach, 3.0f) << "dir " << dir;
+  }
+}
+
+// A random policy locks boxes wherever they happen to be: that seals a door hardly ever, and no seeker rides
+// a box. (The detectors must not fire on play without intent.)
+TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
+  BatchConfig config = quadrant_config(16);
+  config.threads = 2;
+  BatchSim sim(config);
+  const int A = sim.layout().max_agents;
+  std::vector<AgentAction> acts(size_t(config.num_envs) * A);
+  physics::Rng rng(7, 0, 0);
+  double episodes = 0, sealed = 0, locked = 0, surf = 0, approach = 0;
+  for (int t = 0; t < 3 * 80; ++t) {
+    for (AgentAction& a : acts) {
+      a.move_x = uint8_t(rng.uniform_int(0, physics::kMoveBins));
+      a.move_y = uint8_t(rng.uniform_int(0, physics::kMoveBins));
+      a.turn = uint8_t(rng.uniform_int(0, physics::kMoveBins));
+      a.grab = uint8_t(rng.uniform_int(0, 2));
+      a.lock = uint8_t(rng.uniform_int(0, 2));
+    }
+    sim.step(acts);
+    for (const EpisodeStats& st : sim.finished()) {
+      episodes += 1;
+      sealed += st.num_door_sealed_prep;
+      locked += st.num_box_lock_prep;
+      surf += st.box_surf;
+      approach += st.seeker_approach;
+    }
+  }
+  ASSERT_EQ(episodes, 48.0);
+  EXPECT_GT(locked, 0.0) << "random play does lock boxes";
+  EXPECT_LT(sealed / episodes, 0.1) << "but seals doors hardly ever";
+  EXPECT_EQ(surf, 0.0);
+  EXPECT_LT(std::abs(approach / episodes), 0.3) << "random seekers do not chase";
+}
+
+}  // namespace
+}  // namespace hns::batch
