@@ -1,5 +1,6 @@
 // `hns report`: a training run folder (metrics.jsonl, config.json, replay.traj) as one self-contained HTML
-// page with curves and a replay of the latest checkpoint's policy.
+// page with curves, the band of the paper's stages detected in them and a replay of the latest checkpoint's
+// policy; prints when each stage first appeared.
 //
 //   hns report RUN_DIR --html OUT.html [--title TEXT]
 #include <nlohmann/json.hpp>
@@ -14,6 +15,7 @@
 
 #include "cli.hpp"
 #include "replay/metrics.hpp"
+#include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
 #include "replay_html.hpp"
 #include "report_html.hpp"
@@ -75,15 +77,23 @@ int run_report(const ReportOptions& opt) {
                    traj.string().c_str(), e.what());
     }
   }
+  const std::string scene =
+      config.contains("scene") && config["scene"].is_string() ? config["scene"].get<std::string>() : "";
+  const StageReport stages = detect_stages(metrics, scene);
   ReportInputs inputs;
   inputs.title = opt.title.empty() ? "hns training report: " + opt.dir : opt.title;
   inputs.metrics_json = metrics.json;
   inputs.config_json = config.dump();
+  inputs.stages_json = stages.to_json();
   inputs.replay_html = replay;
   const std::string page = render_report_html(inputs);
   write_atomically(opt.html, page);
   std::printf("hns report: wrote %s (%zu iterations%s, %.1f KB); open it in a browser\n", opt.html.c_str(),
               metrics.rows, replay.empty() ? ", no replay" : ", with a replay", page.size() / 1024.0);
+  if (!stages.stages.empty()) {
+    std::printf("stages (docs/training.md; each over windows of %.0f episodes):\n", kStageWindowEpisodes);
+    for (const std::string& line : stages.summary()) std::printf("  %s\n", line.c_str());
+  }
   return 0;
 }
 

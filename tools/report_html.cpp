@@ -41,6 +41,7 @@ std::string render_report_html(const ReportInputs& in) {
           : "<iframe title=\"replay\" srcdoc=\"" + html_escape(in.replay_html) + "\"></iframe>";
   if (replace_all(page, "@HNS_METRICS_JSON@", script_safe(in.metrics_json)) != 1 ||
       replace_all(page, "@HNS_CONFIG_JSON@", script_safe(in.config_json)) != 1 ||
+      replace_all(page, "@HNS_STAGES_JSON@", script_safe(in.stages_json)) != 1 ||
       replace_all(page, "@HNS_REPLAY@", replay) != 1) {
     throw std::logic_error("report_viewer.html must hold each data slot exactly once");
   }

@@ -10,6 +10,7 @@ struct ReportInputs {
   std::string title;
   std::string metrics_json;  // a JSON array of the iteration objects
   std::string config_json;   // the run's config object
+  std::string stages_json;   // replay::StageReport::to_json()
   std::string replay_html;   // a whole replay page, or "" when the run has no recording
 };
 

@@ -105,11 +105,11 @@ else
 fi
 
 # The training report: a short real run (checkpoint, hence a recording, every iteration) rendered as a page
-# that draws its 9 charts from all 3 iterations and embeds the replay of the latest policy.
+# that draws its 11 charts from all 3 iterations and embeds the replay of the latest policy.
 if "$hns" train --scene lockbox --envs 4 --iterations 3 --threads 1 --set checkpoint_every=1 --set minibatches=2 \
      --out "$tmp/run" >"$tmp/log" 2>&1 && "$hns" report "$tmp/run" --html "$tmp/report.html" >>"$tmp/log" 2>&1; then
   s="$(status "$tmp/report.html" "")"
-  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr charts "$s")" = "9" ] && [ "$(attr points "$s")" = "3" ] &&
+  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr charts "$s")" = "11" ] && [ "$(attr points "$s")" = "3" ] &&
      [ "$(attr replay "$s")" = "1" ] && [ "$(attr series "$s")" -ge 9 ] && ! grep -q 'https\?://' "$tmp/report.html"; then
     pass
   else
@@ -143,6 +143,30 @@ if "$hns" report "$tmp/axis" --html "$tmp/axis.html" >"$tmp/log" 2>&1; then
 else
   cat "$tmp/log"
   fail "could not report the axis run"
+fi
+
+# The stage band: a quadrant run whose episodes seal both doors from iteration 21 on reaches fort building
+# at iteration 25 (windows of 1000 episodes: 10 iterations of 100); the page shades the return chart from
+# there and lists the stage, and the command prints it.
+mkdir -p "$tmp/stages"
+echo '{"scene": "quadrant"}' >"$tmp/stages/config.json"
+for i in $(seq 1 40); do
+  sealed=0; [ "$i" -ge 21 ] && sealed=2
+  echo "{\"iteration\": $i, \"agent_steps\": $((i * 20480)), \"episodes\": 100, \"hider_reward\": 0, \"seeker_reward\": 0, \"num_doors\": 2, \"num_door_sealed_prep\": $sealed, \"seeker_approach\": 0.1}"
+done >"$tmp/stages/metrics.jsonl"
+if "$hns" report "$tmp/stages" --html "$tmp/stages.html" >"$tmp/log" 2>&1 &&
+   grep -q "fort building: from iteration 25 " "$tmp/log"; then
+  s="$(status "$tmp/stages.html" "")"
+  if [ "$(attr stages "$s")" = "4" ] && [ "$(attr stages-reached "$s")" = "fort-building" ] &&
+     [ "$(attr band-spans "$s")" = "1" ]; then
+    pass
+  else
+    fail "stage band: ${s:-<none>}"
+  fi
+  chrome --window-size=1280,1000 --screenshot="$shots/report_stages.png" "file://$tmp/stages.html" >/dev/null
+else
+  cat "$tmp/log"
+  fail "could not report the staged run"
 fi
 
 echo "screenshots: $shots/replay_full.png $shots/replay_quadrant.png $shots/report.png"

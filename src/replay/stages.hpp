@@ -1,0 +1,47 @@
+// The paper's stages of emergence, detected in a run's metrics.jsonl (docs/training.md "Stages"): each stage
+// is a criterion on the episode statistics (batch::EpisodeStats), evaluated on a sliding window of the last
+// kStageWindowEpisodes episodes. Used by `hns report` (the stage band and its summary) and the Python
+// module.
+#pragma once
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "replay/metrics.hpp"
+
+namespace hns::replay {
+
+// A stage's criterion is evaluated on windows of at least this many episodes (whole iterations, back from
+// the current one).
+inline constexpr double kStageWindowEpisodes = 1000;
+
+struct StageTrack {
+  std::string name;       // "fort building"
+  std::string criterion;  // "num_door_sealed_prep / num_doors >= 0.5", as shown to the user
+  double threshold = 0;
+  // Per metrics row: the windowed value (NaN while the window holds fewer than kStageWindowEpisodes
+  // episodes with the statistics the criterion needs) and whether it meets the threshold.
+  std::vector<double> value;
+  std::vector<uint8_t> on;
+  // The first row whose window meets the threshold (-1: not reached) and where the run was then.
+  int64_t first_row = -1;
+  int64_t first_iteration = 0;
+  int64_t first_agent_steps = 0;
+  int64_t first_episodes = 0;  // episodes the run had finished by then (the paper counts episodes)
+};
+
+struct StageReport {
+  std::string scene;
+  std::vector<StageTrack> stages;  // in the paper's order; empty for scenes without detectors
+  std::string to_json() const;     // {"scene", "window_episodes", "stages": [{name, criterion, ...}]}
+  // One line per stage: "fort building: from iteration 812 (16.6M agent-steps, 51,968 episodes)" or
+  // "fort building: not reached (last 0.03, needs >= 0.5)".
+  std::vector<std::string> summary() const;
+};
+
+// The stages of `scene` ("quadrant" or "full"; other scenes have none) over the metrics rows. Rows written
+// before a statistic existed (older runs, resumed with a newer hns) leave that statistic's windows.
+StageReport detect_stages(const MetricsRows& rows, const std::string& scene);
+
+}  // namespace hns::replay

@@ -1,0 +1,78 @@
+// Stage detection over metrics rows (docs/training.md "Stages"): windows of whole iterations holding
+// kStageWindowEpisodes episodes, episode-weighted means and ratios, the first row that meets a criterion,
+// rows without a statistic left out of its windows.
+#include "replay/stages.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+namespace hns::replay {
+namespace {
+
+// metrics.jsonl text: `n` iterations of `episodes` episodes each; from iteration `sealed_from` on, every
+// episode seals both of its two doors, before it none does. Rows before `stats_from` lack the detectors.
+std::string quadrant_rows(int n, int episodes, int sealed_from, int stats_from = 1) {
+  std::string text;
+  for (int i = 1; i <= n; ++i) {
+    text += "{\"iteration\": " + std::to_string(i) + ", \"agent_steps\": " + std::to_string(i * 1000) +
+            ", \"episodes\": " + std::to_string(episodes);
+    if (i >= stats_from) {
+      text += ", \"num_doors\": 2, \"num_door_sealed_prep\": " + std::string(i >= sealed_from ? "2" : "0") +
+              ", \"seeker_approach\": 0.1, \"seeker_high_seen\": 0, \"ramp_in_room_prep\": 0.1";
+    }
+    text += "}\n";
+  }
+  return text;
+}
+
+const StageTrack& stage(const StageReport& r, const std::string& name) {
+  for (const StageTrack& t : r.stages) {
+    if (t.name == name) return t;
+  }
+  throw std::runtime_error("no stage " + name);
+}
+
+TEST(Stages, FortBuildingAppearsWhenHalfTheWindowSealsItsDoors) {
+  // 100 episodes per iteration: a window is 10 iterations. Sealing starts at iteration 31; the window ending
+  // at iteration 35 holds 5 sealing iterations of 10: half the doors.
+  const StageReport r = detect_stages(read_metrics_jsonl(quadrant_rows(60, 100, 31)), "quadrant");
+  ASSERT_EQ(r.stages.size(), 4u);
+  const StageTrack& fort = stage(r, "fort building");
+  EXPECT_EQ(fort.first_iteration, 35);
+  EXPECT_EQ(fort.first_agent_steps, 35000);
+  EXPECT_EQ(fort.first_episodes, 3500);
+  EXPECT_TRUE(std::isnan(fort.value[8])) << "iteration 9: fewer than 1000 episodes so far";
+  EXPECT_DOUBLE_EQ(fort.value[9], 0.0);
+  EXPECT_DOUBLE_EQ(fort.value[33], 0.4);
+  EXPECT_DOUBLE_EQ(fort.value[59], 1.0);
+  EXPECT_EQ(fort.on[33], 0);
+  EXPECT_EQ(fort.on[34], 1);
+  EXPECT_EQ(stage(r, "running and chasing").first_row, -1) << "0.1 m/s is not chasing";
+  EXPECT_EQ(stage(r, "ramp defence").first_row, -1);
+  const auto lines = r.summary();
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[1], "fort building: from iteration 35 (35k agent-steps, 3500 episodes)");
+  EXPECT_EQ(lines[0], "running and chasing: not reached (last window 0.1, needs >= 0.25)");
+}
+
+TEST(Stages, RowsWithoutTheStatisticsAreLeftOut) {
+  // A run resumed by a newer hns: the first 40 rows have no detectors. Sealing from iteration 41 on is then
+  // the whole window as soon as the window is full, at iteration 50.
+  const StageReport r = detect_stages(read_metrics_jsonl(quadrant_rows(60, 100, 41, 41)), "quadrant");
+  const StageTrack& fort = stage(r, "fort building");
+  EXPECT_TRUE(std::isnan(fort.value[48]));
+  EXPECT_EQ(fort.first_iteration, 50);
+  EXPECT_EQ(fort.first_episodes, 5000) << "episodes count from the run's start";
+}
+
+TEST(Stages, SmallIterationsMakeLongWindowsAndOtherScenesHaveNone) {
+  const StageReport r = detect_stages(read_metrics_jsonl(quadrant_rows(400, 4, 201)), "quadrant");
+  EXPECT_EQ(stage(r, "fort building").first_iteration, 325) << "windows of 250 iterations of 4 episodes";
+  EXPECT_TRUE(detect_stages(read_metrics_jsonl(quadrant_rows(10, 100, 1)), "lockbox").stages.empty());
+  EXPECT_EQ(detect_stages(read_metrics_jsonl(quadrant_rows(10, 100, 1)), "full").stages.size(), 5u);
+}
+
+}  // namespace
+}  // namespace hns::replay
