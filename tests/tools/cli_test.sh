@@ -276,6 +276,27 @@ else
   failed=$((failed + 1))
   echo "FAIL: Ctrl-C during train -> exit $rc"; cat "$tmp/int.log"
 fi
+# Stopped by Ctrl-C and resumed, a run is one run: its metrics.jsonl equals an uninterrupted run's (timings
+# aside), and the report counts each iteration once.
+cat >"$tmp/same_metrics.py" <<'PY'
+import json, sys
+def rows(path):
+    skip = ("seconds", "steps_per_s")
+    return [{k: v for k, v in json.loads(line).items() if not k.startswith("time_") and k not in skip}
+            for line in open(path)]
+a, b = rows(sys.argv[1]), rows(sys.argv[2])
+sys.exit(0 if a == b and len(a) == int(sys.argv[3]) else 1)
+PY
+n=$(($(wc -l <"$tmp/int/metrics.jsonl") + 2))
+if "$hns" train --resume "$tmp/int" --iterations "$n" >"$tmp/log" 2>&1 &&
+   "$hns" train --config "$tmp/train.json" --iterations "$n" --threads 1 --out "$tmp/straight" >>"$tmp/log" 2>&1 &&
+   python3 "$tmp/same_metrics.py" "$tmp/int/metrics.jsonl" "$tmp/straight/metrics.jsonl" "$n" &&
+   "$hns" report "$tmp/int" --html "$tmp/int.html" 2>&1 | grep -q "($n iterations"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: an interrupted and resumed run is not one run of $n iterations"; cat "$tmp/log"
+fi
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
