@@ -685,7 +685,7 @@ void BatchSim::lockbox_rewards_env(int env, float* reward) {
   std::fill_n(reward, L.max_agents, float(r));
 }
 
-void BatchSim::measure_env(int env, float out[Layout::kPrepStats]) const {
+void BatchSim::measure_env(int env, float out[kNumPrepStats]) const {
   const Layout& L = layout_;
   const BatchState& s = state_;
   auto max_move = [](const float* pos, const float* start, const uint8_t* exists, int n) {
@@ -802,7 +802,7 @@ void BatchSim::track_env(int env, bool any_seen) {
       surfing = stands_on(box_footprint(env, k), top, p[0], p[1], p[2]);
     }
   }
-  run[kSurfSteps] += surfing ? 1.0f : 0.0f;
+  run[kSurfCount] += surfing ? 1.0f : 0.0f;
 }
 
 // Records the finished episode's statistics and starts the env's next episode.
@@ -836,7 +836,7 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   st.ramp_wall_dist = run[kRampWallDist];
   st.seeker_high_seen = run[kHighSeen];
   st.ramp_in_room_prep = prep[kRampInRoom];
-  st.box_surf = run[kSurfSteps] >= float(kSurfSteps) ? 1.0f : 0.0f;
+  st.box_surf = run[kSurfCount] >= float(kSurfSteps) ? 1.0f : 0.0f;
   sc.finished = true;
   reset_env(env, uint64_t(s.episode[env]) + 1);
   s.done[env] = 1;

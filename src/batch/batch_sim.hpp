@@ -40,6 +40,25 @@ struct BatchConfig {
   size_t estimated_bytes() const;
 };
 
+// Slots of the stat_prep field: what the episode statistics read from the mirror when the preparation phase
+// ends (and again when the episode ends): SPEC §7's max box move (m), boxes locked, max ramp move (m), ramps
+// locked, then the doors sealed by locked boxes and whether a ramp is in the quadrant room (1 or 0).
+enum PrepStat { kBoxMove, kBoxLock, kRampMove, kRampLock, kDoorsSealed, kRampInRoom, kNumPrepStats };
+// Slots of the stat_run field: the seeking phase's running statistics. The closest a ramp came to an
+// interior wall (m, starts at 6); 1 once a seeker above a wall saw a hider; steps in which a hider was seen;
+// seeking-phase steps; the sum and count of the seekers' speeds towards their nearest hider (m/s); steps in
+// which a seeker stood on a sliding box.
+enum RunStat {
+  kRampWallDist,
+  kHighSeen,
+  kSeenSteps,
+  kSeekSteps,
+  kApproachSum,
+  kApproachCount,
+  kSurfCount,
+  kNumRunStats
+};
+
 // Per-env sizes of every tensor, fixed per batch by the config's maxima.
 struct Layout {
   int max_agents = 0;                        // A
@@ -56,8 +75,8 @@ struct Layout {
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
   static constexpr int kLidar = 30;
   static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
-  static constexpr int kPrepStats = 6;        // BatchSim::Measured
-  static constexpr int kRunStats = 7;         // BatchSim::Running
+  static constexpr int kPrepStats = kNumPrepStats;
+  static constexpr int kRunStats = kNumRunStats;
 
   // The sizes of a batch of this config.
   static Layout of(const BatchConfig& config);
@@ -122,8 +141,8 @@ struct Layout {
   /* Episode statistics (SPEC §7). */                                                                     \
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                        \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
-  X(float, stat_prep, Layout::kPrepStats, "measured at the end of prep (BatchSim::measure_env)")           \
-  X(float, stat_run, Layout::kRunStats, "running stage statistics of the seeking phase (rewards_env)")     \
+  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")            \
+  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")    \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
   /* Box-locking task (WorldConfig::Task::kLockBox, SPEC §9.2). */                                        \
   X(int32_t, task_target, 1, "box the agent is sent to, -1 when all are locked (envs)")                    \
@@ -279,13 +298,9 @@ class BatchSim {
   void lockbox_retarget(int env);                    // nearest unlocked box and its distance
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
-  // What the episode statistics read from the mirror at the end of prep and of the episode: SPEC §7's
-  // max box move (m), boxes locked, max ramp move (m), ramps locked, then the doors sealed by locked boxes
-  // and whether a ramp is in the quadrant room (stage_stats.hpp).
-  enum Measured { kBoxMove, kBoxLock, kRampMove, kRampLock, kDoorsSealed, kRampInRoom };
-  void measure_env(int env, float out[Layout::kPrepStats]) const;
-  // Running statistics of the seeking phase, updated every step after vision (stat_run).
-  enum Running { kRampWallDist, kHighSeen, kSeenSteps, kSeekSteps, kApproachSum, kApproachCount, kSurfSteps };
+  // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).
+  void measure_env(int env, float out[kNumPrepStats]) const;
+  // The seeking phase's RunStat slots (stat_run), updated every step after vision.
   void track_env(int env, bool any_seen);
   Footprint box_footprint(int env, int box) const;
   void collect_finished();

@@ -61,20 +61,28 @@ DoorGap door_gap(const physics::Scene& scene, const physics::DoorCells& door) {
   const int fixed = g.axis == 1 ? door.x1 : door.y1;
   const int first = g.axis == 1 ? std::min(door.y1, door.y2) : std::min(door.x1, door.x2);
   const int last = g.axis == 1 ? std::max(door.y1, door.y2) : std::max(door.x1, door.x2);
-  g.line = float((fixed + 0.5) * kCellSize);
-  const float mid = float((0.5 * (first + last) + 0.5) * kCellSize);
-  g.lo = 0.0f;
-  g.hi = float(physics::kFloorSize);
-  // The opening ends where a wall box that crosses the wall's line begins.
+  const double line = (fixed + 0.5) * kCellSize, mid = (0.5 * (first + last) + 0.5) * kCellSize;
+  const double half = 0.5 * physics::kWallThickness;
+  g.line = float(line);
+  // Wall pieces end 0.15 m beyond the door's cells; where a one-cell piece was dropped the opening runs one
+  // cell further, to the next wall's face. Farther is never this door: where both corner doors dropped the
+  // room's corner piece, each door's opening stops there (the corner is open between them).
+  constexpr double kReach = 0.15 + kCellSize;
+  double lo = std::max(0.0, first * kCellSize - kReach);
+  double hi = std::min(physics::kFloorSize, (last + 1) * kCellSize + kReach);
+  // The opening ends where a wall box that crosses or touches the wall's line begins (in double, with a
+  // tolerance: a perpendicular wall's face lies exactly on the line's edge).
   for (const physics::StaticBox& w : scene.wall_boxes) {
     const double along_c = g.axis == 0 ? w.cx : w.cy, along_h = g.axis == 0 ? w.hx : w.hy;
     const double across_c = g.axis == 0 ? w.cy : w.cx, across_h = g.axis == 0 ? w.hy : w.hx;
-    if (std::abs(across_c - g.line) >= across_h + g.half_thickness) continue;
-    const float begin = float(along_c - along_h), end = float(along_c + along_h);
-    if (end <= mid) g.lo = std::max(g.lo, end);
-    if (begin >= mid) g.hi = std::min(g.hi, begin);
-    if (begin < mid && end > mid) g.lo = g.hi = mid;  // a wall across the door's cells: no opening
+    if (std::abs(across_c - line) > across_h + half + 1e-6) continue;
+    const double begin = along_c - along_h, end = along_c + along_h;
+    if (end <= mid) lo = std::max(lo, end);
+    if (begin >= mid) hi = std::min(hi, begin);
+    if (begin < mid && end > mid) lo = hi = mid;  // a wall across the door's cells: no opening
   }
+  g.lo = float(lo);
+  g.hi = float(hi);
   return g;
 }
 

@@ -21,6 +21,8 @@ struct Rule {
 
 constexpr Rule kChasing{"running and chasing", "seeker_approach", nullptr, 0.25,
                         "seeker_approach >= 0.25 m/s (seekers run at their nearest hider)"};
+constexpr Rule kBoxSurfing{"box surfing", "box_surf", nullptr, 0.1,
+                           "box_surf >= 0.1 (a seeker rides a sliding box in 1 episode of 10)"};
 constexpr Rule kRampUse{
     "ramp use", "seeker_high_seen", nullptr, 0.2,
     "seeker_high_seen >= 0.2 (in 1 episode of 5 a seeker sees a hider from above a wall)"};
@@ -33,6 +35,7 @@ const std::vector<Rule>& rules_of(const std::string& scene) {
       kRampUse,
       {"ramp defence", "ramp_in_room_prep", nullptr, 0.5,
        "ramp_in_room_prep >= 0.5 (the ramp is in the room when prep ends in half the episodes)"},
+      kBoxSurfing,
   };
   static const std::vector<Rule> full = {
       kChasing,

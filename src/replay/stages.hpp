@@ -1,7 +1,6 @@
 // The paper's stages of emergence, detected in a run's metrics.jsonl (docs/training.md "Stages"): each stage
 // is a criterion on the episode statistics (batch::EpisodeStats), evaluated on a sliding window of the last
-// kStageWindowEpisodes episodes. Used by `hns report` (the stage band and its summary) and the Python
-// module.
+// kStageWindowEpisodes episodes. Used by `hns report` (the stage band, its table and the printed summary).
 #pragma once
 
 #include <cstdint>
@@ -35,8 +34,8 @@ struct StageReport {
   std::string scene;
   std::vector<StageTrack> stages;  // in the paper's order; empty for scenes without detectors
   std::string to_json() const;     // {"scene", "window_episodes", "stages": [{name, criterion, ...}]}
-  // One line per stage: "fort building: from iteration 812 (16.6M agent-steps, 51,968 episodes)" or
-  // "fort building: not reached (last 0.03, needs >= 0.5)".
+  // One line per stage: "fort building: from iteration 812 (16.6M agent-steps, 52k episodes)" or
+  // "fort building: not reached (last window 0.03, needs >= 0.5)".
   std::vector<std::string> summary() const;
 };
 

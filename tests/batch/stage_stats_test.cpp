@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <map>
+#include <memory>
 #include <vector>
 
 #include "batch/batch_sim.hpp"
@@ -80,6 +82,31 @@ TEST(StageGeometry, BoxesSealFromOneSideNotHalfFromEach) {
   // One cube on each side: each side alone leaves a passable stretch; an agent weaves through.
   const Footprint split[] = {square(inside, 1.15f, 0.25f), square(outside, 1.85f, 0.25f)};
   EXPECT_FALSE(door_sealed(g, split));
+}
+
+// Every door of generated quadrant scenes lies on its wall's line (3.1 m) and opens between the wall pieces:
+// 0.7 m for two cells, 0.6 m where the one-cell piece at the wall's end was dropped (the opening then runs to
+// the next wall's face), 0.9 m each where both doors dropped the room's corner piece (the corner is open).
+TEST(StageGeometry, QuadrantDoorGapsMatchTheWallPieces) {
+  physics::SceneConfig config = physics::SceneConfig::quadrant();
+  config.p_door_dropout = 0.0;
+  physics::Scene scene;
+  std::map<int, int> widths;  // cm -> doors
+  for (uint64_t episode = 0; episode < 2000; ++episode) {
+    physics::Rng rng(1, 0, episode);
+    physics::generate_scene(config, rng, scene);
+    ASSERT_EQ(scene.doors.size(), 2u);
+    for (const physics::DoorCells& d : scene.doors) {
+      const DoorGap g = door_gap(scene, d);
+      EXPECT_NEAR(g.line, 3.1f, 1e-6);
+      const int cm = int(std::lround((g.hi - g.lo) * 100));
+      ++widths[cm];
+      EXPECT_TRUE(cm == 60 || cm == 70 || cm == 90)
+          << "episode " << episode << ": " << g.lo << " .. " << g.hi;
+    }
+  }
+  EXPECT_GT(widths[70], 3000);
+  EXPECT_GT(widths[60], 50) << "doors at the walls' ends";
 }
 
 // The quadrant game with both doors (no dropout) and its horizon and preparation phase.
@@ -234,6 +261,38 @@ TEST(StageDetectors, SeekerApproachIsItsSpeedTowardsTheNearestHider) {
     st = sim.finished()[0];
     EXPECT_GT(dir * st.seeker_approach, 3.0f) << "dir " << dir;
   }
+}
+
+// A seeker standing on a cube that a hider pushes along rides it: from the third such step on, the episode
+// counts as box surfing.
+TEST(StageDetectors, SeekerRidingAPushedBoxSurfsFromTheThirdStep) {
+  Scene scene;
+  scene.num_hiders = scene.num_seekers = 1;
+  scene.agents = {Spawn{2.0, 3.0, 0.15, 0.3, 0.3, 0.3}, Spawn{2.45, 3.0, 0.65, 0.3, 0.3, 0.3}};
+  scene.boxes = {Spawn{2.45, 3.0, 0.25, 0.5, 0.5, 0.5}};
+  // Surfing steps in the first `steps` steps of an episode long enough to go on; and the box_surf flag of an
+  // episode of exactly `steps` steps (the physics is the same up to its end).
+  auto play = [&](int horizon, int steps) {
+    auto sim = std::make_unique<BatchSim>(one_on_one(horizon));
+    sim->load_scene(0, scene);
+    std::vector<AgentAction> acts(size_t(sim->layout().max_agents));
+    acts[0].move_x = 8;  // the hider pushes at 0.54 of full force; faster throws the rider off
+    for (int t = 0; t < steps; ++t) sim->step(acts);
+    return sim;
+  };
+  auto surf_steps = [&](int steps) { return play(steps + 5, steps)->state().stat_run[kSurfCount]; };
+  auto flag = [&](int steps) {
+    const auto sim = play(steps, steps);
+    return sim->finished().size() == 1 ? sim->finished()[0].box_surf : -1.0f;
+  };
+  ASSERT_GE(surf_steps(12), 5.0f) << "the seeker rides the pushed cube";
+  EXPECT_EQ(flag(12), 1.0f);
+  // The shortest episode with kSurfSteps (3) surfing steps counts; one step shorter does not.
+  int h = 1;
+  while (surf_steps(h) < float(kSurfSteps)) ++h;
+  EXPECT_EQ(surf_steps(h - 1), float(kSurfSteps - 1));
+  EXPECT_EQ(flag(h), 1.0f) << h << " steps";
+  EXPECT_EQ(flag(h - 1), 0.0f) << h - 1 << " steps";
 }
 
 // A random policy locks boxes wherever they happen to be: that seals a door hardly ever, and no seeker rides

@@ -38,7 +38,7 @@ TEST(Stages, FortBuildingAppearsWhenHalfTheWindowSealsItsDoors) {
   // 100 episodes per iteration: a window is 10 iterations. Sealing starts at iteration 31; the window ending
   // at iteration 35 holds 5 sealing iterations of 10: half the doors.
   const StageReport r = detect_stages(read_metrics_jsonl(quadrant_rows(60, 100, 31)), "quadrant");
-  ASSERT_EQ(r.stages.size(), 4u);
+  ASSERT_EQ(r.stages.size(), 5u);
   const StageTrack& fort = stage(r, "fort building");
   EXPECT_EQ(fort.first_iteration, 35);
   EXPECT_EQ(fort.first_agent_steps, 35000);
@@ -52,7 +52,7 @@ TEST(Stages, FortBuildingAppearsWhenHalfTheWindowSealsItsDoors) {
   EXPECT_EQ(stage(r, "running and chasing").first_row, -1) << "0.1 m/s is not chasing";
   EXPECT_EQ(stage(r, "ramp defence").first_row, -1);
   const auto lines = r.summary();
-  ASSERT_EQ(lines.size(), 4u);
+  ASSERT_EQ(lines.size(), 5u);
   EXPECT_EQ(lines[1], "fort building: from iteration 35 (35k agent-steps, 3500 episodes)");
   EXPECT_EQ(lines[0], "running and chasing: not reached (last window 0.1, needs >= 0.25)");
 }

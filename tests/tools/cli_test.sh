@@ -298,5 +298,18 @@ else
   echo "FAIL: an interrupted and resumed run is not one run of $n iterations"; cat "$tmp/log"
 fi
 
+# The shipped recipes (configs/) are valid configs that train: each runs one iteration shrunk to 4 envs.
+configs="$(cd "$(dirname "$0")/../../configs" && pwd)"
+for cfg in "$configs"/*.json; do
+  name="$(basename "$cfg" .json)"
+  if "$hns" train --config "$cfg" --envs 4 --iterations 1 --threads 1 --out "$tmp/cfg-$name" >"$tmp/log" 2>&1 &&
+     [ "$(wc -l <"$tmp/cfg-$name/metrics.jsonl")" -eq 1 ]; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
+    echo "FAIL: recipe $cfg"; cat "$tmp/log"
+  fi
+done
+
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]

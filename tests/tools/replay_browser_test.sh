@@ -157,7 +157,7 @@ done >"$tmp/stages/metrics.jsonl"
 if "$hns" report "$tmp/stages" --html "$tmp/stages.html" >"$tmp/log" 2>&1 &&
    grep -q "fort building: from iteration 25 " "$tmp/log"; then
   s="$(status "$tmp/stages.html" "")"
-  if [ "$(attr stages "$s")" = "4" ] && [ "$(attr stages-reached "$s")" = "fort-building" ] &&
+  if [ "$(attr stages "$s")" = "5" ] && [ "$(attr stages-reached "$s")" = "fort-building" ] &&
      [ "$(attr band-spans "$s")" = "1" ]; then
     pass
   else
