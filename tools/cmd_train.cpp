@@ -28,6 +28,7 @@
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
 #include "replay/recorder.hpp"
+#include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
 
 namespace hns::tools {
@@ -367,6 +368,13 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   // SIGUSR1 too: mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM,
   // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
   std::signal(SIGUSR1, on_interrupt);
+  // The paper's stages (docs/training.md "Stages"), announced as each first appears; a resumed run's earlier
+  // iterations are read first, silently.
+  replay::StageTracker stages(cfg.scene);
+  {
+    std::ifstream earlier(metrics_path);
+    for (std::string line; std::getline(earlier, line);) stages.add(line);
+  }
   std::ofstream metrics(metrics_path, std::ios::app);
   if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
   ppo::IterationMetrics totals;  // summed times of this process's iterations
@@ -392,9 +400,13 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
       }
       return 3;
     }
-    metrics << m.to_json() << "\n";
+    const std::string row = m.to_json();
+    metrics << row << "\n";
     metrics.flush();
     if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
+    for (int k : stages.add(row)) {
+      std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());
+    }
     if (trainer.iteration() == profile_until) finish_profile();
     for (auto [sum, v] : {std::pair{&totals.seconds, m.seconds},
                           {&totals.t_simulate, m.t_simulate},

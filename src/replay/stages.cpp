@@ -2,8 +2,10 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
+#include <deque>
 #include <limits>
 
 namespace hns::replay {
@@ -71,56 +73,106 @@ std::string short_count(double v) {
 
 }  // namespace
 
+// Every stage's sliding window over the rows added so far: the fewest whole rows back from the latest
+// holding kStageWindowEpisodes episodes that have the statistics its criterion reads.
+struct StageWindows {
+  struct Window {
+    Rule rule;
+    std::deque<std::array<double, 3>> rows;  // episodes, numerator x episodes, denominator x episodes
+    double ep = 0, num = 0, den = 0;
+    double value = std::numeric_limits<double>::quiet_NaN();
+  };
+  std::vector<Window> windows;
+  std::vector<StageTrack> stages;  // names, criteria, first appearances (no history)
+  int64_t rows = 0, episodes = 0;
+
+  explicit StageWindows(const std::string& scene) {
+    for (const Rule& rule : rules_of(scene)) {
+      windows.push_back(Window{rule, {}, 0, 0, 0, std::numeric_limits<double>::quiet_NaN()});
+      StageTrack t;
+      t.name = rule.name;
+      t.criterion = rule.criterion;
+      t.threshold = rule.threshold;
+      stages.push_back(std::move(t));
+    }
+  }
+
+  // Adds the next row; returns the stages first met at it.
+  std::vector<int> add(const nlohmann::json& row) {
+    std::vector<int> reached;
+    const double e = number(row, "episodes");
+    episodes += std::isfinite(e) ? int64_t(e) : 0;
+    for (size_t k = 0; k < windows.size(); ++k) {
+      Window& w = windows[k];
+      const double a = number(row, w.rule.numerator);
+      const double b = w.rule.denominator ? number(row, w.rule.denominator) : 1.0;
+      const bool counts = e > 0 && std::isfinite(a) && std::isfinite(b);
+      const std::array<double, 3> r =
+          counts ? std::array<double, 3>{e, a * e, b * e} : std::array<double, 3>{};
+      w.rows.push_back(r);
+      w.ep += r[0], w.num += r[1], w.den += r[2];
+      while (w.rows.size() > 1 && w.ep - w.rows.front()[0] >= kStageWindowEpisodes) {
+        w.ep -= w.rows.front()[0], w.num -= w.rows.front()[1], w.den -= w.rows.front()[2];
+        w.rows.pop_front();
+      }
+      w.value = w.ep >= kStageWindowEpisodes && w.den > 0 ? w.num / w.den
+                                                          : std::numeric_limits<double>::quiet_NaN();
+      StageTrack& t = stages[k];
+      if (w.value >= w.rule.threshold && t.first_row < 0) {
+        t.first_row = rows;
+        t.first_iteration = int64_t(number(row, "iteration"));
+        t.first_agent_steps = int64_t(number(row, "agent_steps"));
+        t.first_episodes = episodes;
+        reached.push_back(int(k));
+      }
+    }
+    ++rows;
+    return reached;
+  }
+};
+
+StageTracker::StageTracker(const std::string& scene) : w_(std::make_unique<StageWindows>(scene)) {}
+StageTracker::~StageTracker() = default;
+
+std::vector<int> StageTracker::add(std::string_view row) {
+  const nlohmann::json j = nlohmann::json::parse(row, nullptr, false);
+  return w_->add(j.is_object() ? j : nlohmann::json::object());
+}
+
+const std::vector<StageTrack>& StageTracker::stages() const {
+  return w_->stages;
+}
+
+double StageTracker::value(int stage) const {
+  return w_->windows[size_t(stage)].value;
+}
+
 StageReport detect_stages(const MetricsRows& rows, const std::string& scene) {
+  const nlohmann::json all = nlohmann::json::parse(rows.json);
+  StageWindows w(scene);
+  std::vector<std::vector<double>> values(w.windows.size());
+  for (const nlohmann::json& row : all) {
+    w.add(row);
+    for (size_t k = 0; k < w.windows.size(); ++k) values[k].push_back(w.windows[k].value);
+  }
   StageReport report;
   report.scene = scene;
-  const nlohmann::json all = nlohmann::json::parse(rows.json);
-  const size_t n = all.size();
-  // Episodes finished by the end of each row.
-  std::vector<int64_t> done(n);
-  int64_t total = 0;
-  for (size_t i = 0; i < n; ++i) {
-    const double e = number(all[i], "episodes");
-    total += std::isfinite(e) ? int64_t(e) : 0;
-    done[i] = total;
-  }
-  for (const Rule& rule : rules_of(scene)) {
-    StageTrack t;
-    t.name = rule.name;
-    t.criterion = rule.criterion;
-    t.threshold = rule.threshold;
-    t.value.assign(n, std::numeric_limits<double>::quiet_NaN());
-    t.on.assign(n, 0);
-    // Per row: episodes that count, and their sums of numerator and denominator.
-    std::vector<double> ep(n, 0.0), num(n, 0.0), den(n, 0.0);
-    for (size_t i = 0; i < n; ++i) {
-      const double e = number(all[i], "episodes"), a = number(all[i], rule.numerator);
-      const double b = rule.denominator ? number(all[i], rule.denominator) : 1.0;
-      if (!(e > 0) || !std::isfinite(a) || !std::isfinite(b)) continue;
-      ep[i] = e, num[i] = a * e, den[i] = b * e;
-    }
-    // Sliding window [lo, i]: the fewest rows back from i holding kStageWindowEpisodes episodes.
-    double sum_ep = 0, sum_num = 0, sum_den = 0;
-    size_t lo = 0;
-    for (size_t i = 0; i < n; ++i) {
-      sum_ep += ep[i], sum_num += num[i], sum_den += den[i];
-      while (lo < i && sum_ep - ep[lo] >= kStageWindowEpisodes) {
-        sum_ep -= ep[lo], sum_num -= num[lo], sum_den -= den[lo];
-        ++lo;
-      }
-      if (sum_ep < kStageWindowEpisodes || !(sum_den > 0)) continue;
-      t.value[i] = sum_num / sum_den;
-      t.on[i] = t.value[i] >= rule.threshold ? 1 : 0;
-      if (t.on[i] && t.first_row < 0) {
-        t.first_row = int64_t(i);
-        t.first_iteration = int64_t(number(all[i], "iteration"));
-        t.first_agent_steps = int64_t(number(all[i], "agent_steps"));
-        t.first_episodes = done[i];
-      }
-    }
-    report.stages.push_back(std::move(t));
+  report.stages = std::move(w.stages);
+  for (size_t k = 0; k < report.stages.size(); ++k) {
+    StageTrack& t = report.stages[k];
+    t.value = std::move(values[k]);
+    t.on.resize(t.value.size());
+    for (size_t i = 0; i < t.value.size(); ++i) t.on[i] = t.value[i] >= t.threshold ? 1 : 0;
   }
   return report;
+}
+
+std::string StageTrack::reached_text() const {
+  char buf[256];
+  std::snprintf(buf, sizeof buf, "%s: from iteration %lld (%s agent-steps, %s episodes)", name.c_str(),
+                static_cast<long long>(first_iteration), short_count(double(first_agent_steps)).c_str(),
+                short_count(double(first_episodes)).c_str());
+  return buf;
 }
 
 std::string StageReport::to_json() const {
@@ -151,27 +203,24 @@ std::string StageReport::to_json() const {
 std::vector<std::string> StageReport::summary() const {
   std::vector<std::string> lines;
   for (const StageTrack& t : stages) {
-    char buf[256];
     if (t.first_row >= 0) {
-      std::snprintf(buf, sizeof buf, "%s: from iteration %lld (%s agent-steps, %s episodes)", t.name.c_str(),
-                    static_cast<long long>(t.first_iteration),
-                    short_count(double(t.first_agent_steps)).c_str(),
-                    short_count(double(t.first_episodes)).c_str());
+      lines.push_back(t.reached_text());
+      continue;
+    }
+    double last = std::numeric_limits<double>::quiet_NaN();
+    for (size_t i = t.value.size(); i-- > 0;) {
+      if (std::isfinite(t.value[i])) {
+        last = t.value[i];
+        break;
+      }
+    }
+    char buf[256];
+    if (std::isfinite(last)) {
+      std::snprintf(buf, sizeof buf, "%s: not reached (last window %.3g, needs >= %g)", t.name.c_str(), last,
+                    t.threshold);
     } else {
-      double last = std::numeric_limits<double>::quiet_NaN();
-      for (size_t i = t.value.size(); i-- > 0;) {
-        if (std::isfinite(t.value[i])) {
-          last = t.value[i];
-          break;
-        }
-      }
-      if (std::isfinite(last)) {
-        std::snprintf(buf, sizeof buf, "%s: not reached (last window %.3g, needs >= %g)", t.name.c_str(),
-                      last, t.threshold);
-      } else {
-        std::snprintf(buf, sizeof buf, "%s: not reached (fewer than %.0f episodes with its statistics)",
-                      t.name.c_str(), kStageWindowEpisodes);
-      }
+      std::snprintf(buf, sizeof buf, "%s: not reached (fewer than %.0f episodes with its statistics)",
+                    t.name.c_str(), kStageWindowEpisodes);
     }
     lines.emplace_back(buf);
   }

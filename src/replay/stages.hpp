@@ -4,7 +4,9 @@
 #pragma once
 
 #include <cstdint>
+#include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "replay/metrics.hpp"
@@ -28,6 +30,8 @@ struct StageTrack {
   int64_t first_iteration = 0;
   int64_t first_agent_steps = 0;
   int64_t first_episodes = 0;  // episodes the run had finished by then (the paper counts episodes)
+  // "fort building: from iteration 812 (16.6M agent-steps, 52k episodes)".
+  std::string reached_text() const;
 };
 
 struct StageReport {
@@ -37,6 +41,28 @@ struct StageReport {
   // One line per stage: "fort building: from iteration 812 (16.6M agent-steps, 52k episodes)" or
   // "fort building: not reached (last window 0.03, needs >= 0.5)".
   std::vector<std::string> summary() const;
+};
+
+struct StageWindows;  // stages.cpp
+
+// The same detection one metrics row at a time, keeping only the windows (`hns train` announces each stage
+// as it first appears, however long the run).
+class StageTracker {
+ public:
+  explicit StageTracker(const std::string& scene);
+  ~StageTracker();
+  StageTracker(const StageTracker&) = delete;
+  StageTracker& operator=(const StageTracker&) = delete;
+  // Adds the next line of metrics.jsonl (an object written by IterationMetrics::to_json; anything else counts
+  // as a row without statistics); returns the stages (indices into stages()) first met at this row.
+  std::vector<int> add(std::string_view row);
+  // Names, criteria and first appearances (value and on stay empty).
+  const std::vector<StageTrack>& stages() const;
+  // The latest window's value of a stage (NaN while its window is short).
+  double value(int stage) const;
+
+ private:
+  std::unique_ptr<StageWindows> w_;
 };
 
 // The stages of `scene` ("quadrant" or "full"; other scenes have none) over the metrics rows. Rows written

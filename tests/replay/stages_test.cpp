@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <string>
+#include <string_view>
+#include <vector>
 
 namespace hns::replay {
 namespace {
@@ -72,6 +74,32 @@ TEST(Stages, SmallIterationsMakeLongWindowsAndOtherScenesHaveNone) {
   EXPECT_EQ(stage(r, "fort building").first_iteration, 325) << "windows of 250 iterations of 4 episodes";
   EXPECT_TRUE(detect_stages(read_metrics_jsonl(quadrant_rows(10, 100, 1)), "lockbox").stages.empty());
   EXPECT_EQ(detect_stages(read_metrics_jsonl(quadrant_rows(10, 100, 1)), "full").stages.size(), 5u);
+}
+
+// The tracker `hns train` announces stages with sees the rows one at a time and reaches each stage at the
+// same row as the whole-file detection, once.
+TEST(Stages, TrackerMatchesTheWholeFileDetection) {
+  const std::string text = quadrant_rows(60, 100, 31, 5);
+  const StageReport whole = detect_stages(read_metrics_jsonl(text), "quadrant");
+  StageTracker tracker("quadrant");
+  std::vector<int> reached_at(whole.stages.size(), -1);
+  size_t start = 0;
+  for (int row = 0; start < text.size(); ++row) {
+    const size_t end = text.find('\n', start);
+    for (int k : tracker.add(std::string_view(text).substr(start, end - start))) {
+      EXPECT_EQ(reached_at[size_t(k)], -1) << "stage " << k << " announced twice";
+      reached_at[size_t(k)] = row;
+    }
+    start = end + 1;
+  }
+  for (size_t k = 0; k < whole.stages.size(); ++k) {
+    EXPECT_EQ(reached_at[k], whole.stages[k].first_row) << whole.stages[k].name;
+    EXPECT_EQ(tracker.stages()[k].first_episodes, whole.stages[k].first_episodes);
+    EXPECT_EQ(std::isnan(tracker.value(int(k))), std::isnan(whole.stages[k].value.back()));
+  }
+  EXPECT_EQ(reached_at[1], 34) << "fort building";
+  EXPECT_DOUBLE_EQ(tracker.value(1), 1.0);
+  EXPECT_TRUE(tracker.add("not json").empty()) << "a line that is not a row adds nothing";
 }
 
 }  // namespace
