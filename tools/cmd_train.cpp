@@ -404,9 +404,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     metrics << row << "\n";
     metrics.flush();
     if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
-    for (int k : stages.add(row)) {
-      std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());
-    }
+    const std::vector<int> reached = stages.add(row);
     if (trainer.iteration() == profile_until) finish_profile();
     for (auto [sum, v] : {std::pair{&totals.seconds, m.seconds},
                           {&totals.t_simulate, m.t_simulate},
@@ -429,6 +427,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
         static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
         m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, ranks.c_str(),
         duration_text(eta).c_str());
+    for (int k : reached) {
+      std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());
+    }
     std::fflush(stdout);
     const bool last = trainer.iteration() >= cfg.iterations;
     // Read once (a signal between two reads must not skip the checkpoint) and agreed by every rank.

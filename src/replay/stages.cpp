@@ -46,8 +46,7 @@ const std::vector<Rule>& rules_of(const std::string& scene) {
       kRampUse,
       {"ramp defence", "num_ramp_lock_prep", nullptr, 1.0,
        "num_ramp_lock_prep >= 1 (ramps locked when prep ends)"},
-      {"box surfing", "box_surf", nullptr, 0.1,
-       "box_surf >= 0.1 (a seeker rides a sliding box in 1 episode of 10)"},
+      kBoxSurfing,
   };
   static const std::vector<Rule> none;
   return scene == "quadrant" ? quadrant : scene == "full" ? full : none;
@@ -107,10 +106,10 @@ struct StageWindows {
       const double a = number(row, w.rule.numerator);
       const double b = w.rule.denominator ? number(row, w.rule.denominator) : 1.0;
       const bool counts = e > 0 && std::isfinite(a) && std::isfinite(b);
-      const std::array<double, 3> r =
-          counts ? std::array<double, 3>{e, a * e, b * e} : std::array<double, 3>{};
-      w.rows.push_back(r);
-      w.ep += r[0], w.num += r[1], w.den += r[2];
+      if (counts) {  // rows without the statistics stay out of the window (they would add nothing to it)
+        w.rows.push_back({e, a * e, b * e});
+        w.ep += e, w.num += a * e, w.den += b * e;
+      }
       while (w.rows.size() > 1 && w.ep - w.rows.front()[0] >= kStageWindowEpisodes) {
         w.ep -= w.rows.front()[0], w.num -= w.rows.front()[1], w.den -= w.rows.front()[2];
         w.rows.pop_front();

@@ -107,6 +107,7 @@ TEST(StageGeometry, QuadrantDoorGapsMatchTheWallPieces) {
   }
   EXPECT_GT(widths[70], 3000);
   EXPECT_GT(widths[60], 50) << "doors at the walls' ends";
+  EXPECT_GT(widths[90], 0) << "the open corner";
 }
 
 // The quadrant game with both doors (no dropout) and its horizon and preparation phase.

@@ -14,13 +14,14 @@ namespace hns::replay {
 namespace {
 
 // metrics.jsonl text: `n` iterations of `episodes` episodes each; from iteration `sealed_from` on, every
-// episode seals both of its two doors, before it none does. Rows before `stats_from` lack the detectors.
-std::string quadrant_rows(int n, int episodes, int sealed_from, int stats_from = 1) {
+// episode seals both of its two doors, before it none does. Rows before `stats_from`, and every
+// `gap_every`-th row, lack the detectors.
+std::string quadrant_rows(int n, int episodes, int sealed_from, int stats_from = 1, int gap_every = 0) {
   std::string text;
   for (int i = 1; i <= n; ++i) {
     text += "{\"iteration\": " + std::to_string(i) + ", \"agent_steps\": " + std::to_string(i * 1000) +
             ", \"episodes\": " + std::to_string(episodes);
-    if (i >= stats_from) {
+    if (i >= stats_from && !(gap_every > 0 && i % gap_every == 0)) {
       text += ", \"num_doors\": 2, \"num_door_sealed_prep\": " + std::string(i >= sealed_from ? "2" : "0") +
               ", \"seeker_approach\": 0.1, \"seeker_high_seen\": 0, \"ramp_in_room_prep\": 0.1";
     }
@@ -100,6 +101,32 @@ TEST(Stages, TrackerMatchesTheWholeFileDetection) {
   EXPECT_EQ(reached_at[1], 34) << "fort building";
   EXPECT_DOUBLE_EQ(tracker.value(1), 1.0);
   EXPECT_TRUE(tracker.add("not json").empty()) << "a line that is not a row adds nothing";
+  EXPECT_DOUBLE_EQ(tracker.value(1), 1.0) << "nor changes a window";
+}
+
+TEST(Stages, RowsWithoutStatisticsInsideTheWindowAndOneHugeRow) {
+  // Every even row lacks the detectors: a window spans 20 rows (10 that count), and sealing from iteration
+  // 51 on fills half of one (51, 53, ..., 59 of 41 ... 59) at iteration 59.
+  const StageReport gaps = detect_stages(read_metrics_jsonl(quadrant_rows(100, 100, 51, 1, 2)), "quadrant");
+  EXPECT_EQ(stage(gaps, "fort building").first_iteration, 59);
+  EXPECT_EQ(stage(gaps, "fort building").first_episodes, 5900) << "every row's episodes count for the run";
+  // One iteration of 5000 episodes is a window on its own.
+  const StageReport huge = detect_stages(read_metrics_jsonl(quadrant_rows(3, 5000, 2)), "quadrant");
+  EXPECT_EQ(stage(huge, "fort building").first_iteration, 2);
+  EXPECT_DOUBLE_EQ(stage(huge, "fort building").value[0], 0.0);
+  EXPECT_DOUBLE_EQ(stage(huge, "fort building").value[1], 1.0);
+}
+
+TEST(Stages, QuadrantBoxSurfingFromItsShareOfEpisodes) {
+  std::string text;
+  for (int i = 1; i <= 30; ++i) {
+    text += "{\"iteration\": " + std::to_string(i) + ", \"agent_steps\": " + std::to_string(i * 100) +
+            ", \"episodes\": 100, \"box_surf\": " + (i > 20 ? "0.15" : "0.05") + "}\n";
+  }
+  const StageReport r = detect_stages(read_metrics_jsonl(text), "quadrant");
+  // Windows of 10 iterations: 0.05 x (10 - k) + 0.15 x k >= 0.1 from k = 5, iteration 25.
+  EXPECT_EQ(stage(r, "box surfing").first_iteration, 25);
+  EXPECT_EQ(stage(r, "fort building").first_row, -1) << "no door statistics in these rows";
 }
 
 }  // namespace
