@@ -23,6 +23,7 @@
 #include "ppo/policy.hpp"
 #include "replay/metrics.hpp"
 #include "replay/play.hpp"
+#include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
 
 namespace py = pybind11;
@@ -710,6 +711,11 @@ std::string read_metrics_json(const py::object& path_arg) {
   }
 }
 
+// replay::detect_stages over metrics rows given as a JSON array (hns.detect_stages serialises its rows).
+std::string detect_stages_json(const std::string& rows_json, const std::string& scene) {
+  return replay::detect_stages(replay::MetricsRows{rows_json, 0}, scene).to_json();
+}
+
 // Records whole episodes into a trajectory file, as `hns play` does (the same bytes for the same arguments,
 // but for the file's created_by).
 py::dict record(const py::object& path_arg, const std::string& scene, const py::object& checkpoint_arg,
@@ -850,6 +856,7 @@ states (initial_state(num_envs) gives zeros; an env at step_count 0 has its stat
   m.def("read_trajectory", &read_trajectory, py::arg("path"),
         "A trajectory file (hns play, hns train's replay.traj) as a dict of headers and numpy blocks.");
   m.def("_read_metrics_json", &read_metrics_json, py::arg("path"));
+  m.def("_detect_stages_json", &detect_stages_json, py::arg("rows_json"), py::arg("scene"));
   m.def("record", &record, py::arg("path"), py::arg("scene") = "", py::arg("checkpoint") = py::none(),
         py::arg("episodes") = 1, py::arg("envs") = 1, py::arg("threads") = 1, py::arg("seed") = py::int_(1),
         py::arg("hiders") = py::none(), py::arg("seekers") = py::none(), py::arg("boxes") = py::none(),

@@ -56,7 +56,7 @@ from ._hns import (  # noqa: F401
     record,
     scenes,
 )
-from ._hns import _read_metrics_json
+from ._hns import _detect_stages_json, _read_metrics_json
 
 
 def read_metrics(path):
@@ -66,6 +66,22 @@ def read_metrics(path):
     ValueError naming the file and line.
     """
     return _json.loads(_read_metrics_json(str(path)))
+
+
+def detect_stages(rows, scene):
+    """The paper's stages in read_metrics() rows of a `scene` run ("quadrant" or "full"; other scenes have
+    none), as `hns train` and `hns report` detect them (docs/training.md "Stages").
+
+    Returns a dict with `scene`, `window_episodes` and `stages`: in the paper's order, dicts with `name`,
+    `criterion`, `threshold`, `value` (float array, one per row: the window's value, NaN while the window
+    holds too few episodes), `on` (bool array), and where the criterion first held: `first_row` (-1: never),
+    `first_iteration`, `first_agent_steps`, `first_episodes`.
+    """
+    report = _json.loads(_detect_stages_json(_json.dumps(list(rows)), str(scene)))
+    for stage in report["stages"]:
+        stage["value"] = _numpy.asarray([float("nan") if v is None else v for v in stage["value"]], dtype=float)
+        stage["on"] = _numpy.asarray([c == "1" for c in stage["on"]], dtype=bool)
+    return report
 
 
 def metrics_column(rows, key, default=float("nan")):

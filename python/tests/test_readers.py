@@ -54,6 +54,23 @@ def test_read_metrics(checkpoint, tmp_path):
         hns.read_metrics(tmp_path / "nothing.jsonl")
 
 
+def test_detect_stages():
+    # 100 episodes per iteration: windows of 10 iterations. Every episode seals both doors from iteration 21
+    # on: half of a window at iteration 25.
+    rows = [{"iteration": i, "agent_steps": 1000 * i, "episodes": 100, "num_doors": 2,
+             "num_door_sealed_prep": 2 if i > 20 else 0} for i in range(1, 41)]
+    report = hns.detect_stages(rows, "quadrant")
+    assert report["window_episodes"] == 1000
+    stages = {s["name"]: s for s in report["stages"]}
+    assert list(stages)[:2] == ["running and chasing", "fort building"]
+    fort = stages["fort building"]
+    assert (fort["first_row"], fort["first_iteration"], fort["first_episodes"]) == (24, 25, 2500)
+    assert np.isnan(fort["value"][8]) and fort["value"][9] == 0 and fort["value"][-1] == 1
+    assert not fort["on"][23] and fort["on"][24] and fort["on"].dtype == bool
+    assert stages["running and chasing"]["first_row"] == -1 and np.isnan(stages["running and chasing"]["value"]).all()
+    assert hns.detect_stages(rows, "lockbox")["stages"] == []
+
+
 def episodes_of(path):
     return sorted(hns.read_trajectory(path)["episodes"], key=lambda ep: (ep["env"], ep["episode"]))
 
