@@ -121,9 +121,9 @@ bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes) {
 }
 
 Rect quadrant_room() {
-  // Room walls on grid row and column 15 (SPEC §2.3), outer walls on 0 and 29; the interior runs from one
-  // wall box's face to the other's.
-  constexpr int kRoomWall = 15, kLast = physics::kGridSize - 1;
+  // Room walls on grid row and column kQuadrantSize (SPEC §2.3), outer walls on 0 and 29; the interior runs
+  // from one wall box's face to the other's.
+  constexpr int kRoomWall = physics::kQuadrantSize, kLast = physics::kGridSize - 1;
   const float h = float(0.5 * physics::kWallThickness);
   return Rect{float((kRoomWall + 0.5) * kCellSize) + h, float(0.5 * kCellSize) + h,
               float((kLast + 0.5) * kCellSize) - h, float((kRoomWall + 0.5) * kCellSize) - h};

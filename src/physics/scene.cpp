@@ -15,7 +15,6 @@
 namespace hns::physics {
 namespace {
 
-constexpr int kQuadrantSize = 15;  // q_size = int(0.5 * grid size): the room's wall row and column
 constexpr int kMinRoomSize = 6;  // random walls: attachment points on one side of a wall are > 6 cells apart
 constexpr int kSplitTries = 10;  // random walls: attempts per new interior wall (choose_new_split)
 constexpr int kRoomFailures = 10;  // random walls: restarts from the outer walls before the scene is rebuilt

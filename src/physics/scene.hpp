@@ -24,6 +24,7 @@ inline constexpr double kBoxSize = 0.5;             // m, cube edge and elongate
 inline constexpr double kElongatedLong = 1.65;      // m
 inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
+inline constexpr int kQuadrantSize = 15;  // quadrant: q_size = int(0.5 * grid size), the room walls' row and column
 
 // Wall layout of a scene.
 enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls };
