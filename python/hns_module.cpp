@@ -786,7 +786,9 @@ PYBIND11_MODULE(_hns, m) {
   m.doc() = "hns: the batch hide-and-seek simulator, trained policies and recordings (docs/python.md)";
   m.attr("__version__") = HNS_VERSION;
   m.attr("isa") = HNS_ISA_SETTING;
-  m.attr("scenes") = py::make_tuple("quadrant", "full", "empty", "lockbox");
+  py::tuple scenes(hns::physics::kSceneNames.size());
+  for (size_t i = 0; i < scenes.size(); ++i) scenes[i] = hns::physics::kSceneNames[i];
+  m.attr("scenes") = scenes;
   py::register_exception<hns::replay::TrajectoryError>(m, "TrajectoryError", PyExc_ValueError);
 
   py::class_<BatchEnv>(m, "BatchEnv", R"doc(

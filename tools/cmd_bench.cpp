@@ -246,7 +246,7 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand("bench", "Throughput of the simulator with random actions");
   cmd->add_option("--scene", opt->scene, "Scene preset")
-      ->check(CLI::IsMember({"quadrant", "full", "empty", "lockbox"}))
+      ->check(CLI::IsMember(std::vector<std::string>(phys::kSceneNames.begin(), phys::kSceneNames.end())))
       ->capture_default_str();
   cmd->add_option("--envs", opt->envs, "Number of envs")
       ->check(CLI::Range(1, 1 << 20))

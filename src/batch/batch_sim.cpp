@@ -29,6 +29,8 @@ int max_walls(const physics::SceneConfig& scene) {
       return 4 + 2 * 2;
     case physics::Layout::kRandomWalls:
       return 4 + 2 * std::max(0, scene.rooms.max - 1);
+    case physics::Layout::kVarTri:
+      return 4 + 2;
     default:
       return 4;
   }
@@ -96,9 +98,9 @@ void BatchState::allocate(const Layout& L, int num_envs) {
 Layout Layout::of(const BatchConfig& config) {
   const physics::SceneConfig& scene = config.world.scene;
   Layout L;
-  L.max_agents = config.world.max_agents();
+  L.max_agents = std::max(config.world.max_agents(), config.world.obs_min_agents);
   L.max_boxes = scene.boxes.max;
-  L.max_ramps = scene.ramps.max;
+  L.max_ramps = std::max(scene.ramps.max, config.world.obs_min_ramps);
   L.max_walls = ::hns::batch::max_walls(scene);
   L.others = std::max(0, L.max_agents - 1);
   L.shape_boxes = L.max_walls + L.max_boxes;
@@ -310,7 +312,12 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
               state_.ramp_pos_start.data() + size_t(env) * layout_.max_ramps * 3);
   std::copy_n(state_.box_locked.data() + size_t(env) * layout_.max_boxes, layout_.max_boxes,
               state_.task_locked.data() + size_t(env) * layout_.max_boxes);
-  if (config_.world.task == physics::WorldConfig::Task::kLockBox) lockbox_retarget(env);
+  if (config_.world.is_lock_task()) {
+    const float* agent = state_.agent_pos.data() + size_t(env) * layout_.max_agents * 3;
+    state_.task_spawn[size_t(env) * 2] = agent[0];
+    state_.task_spawn[size_t(env) * 2 + 1] = agent[1];
+    lockbox_retarget(env);
+  }
 }
 
 void BatchSim::resync(int env) {
@@ -599,7 +606,7 @@ void BatchSim::rewards_env(int env) {
   }
   const bool prep = t <= wc.prep_steps();
   float* reward = s.reward.data() + size_t(env) * L.max_agents;
-  if (wc.task == physics::WorldConfig::Task::kLockBox) {
+  if (wc.is_lock_task()) {
     lockbox_rewards_env(env, reward);
     for (int a = 0; a < L.max_agents; ++a) {
       if (a < n && outside(pos + 3 * a)) reward[a] = kOutOfBoundsReward;
@@ -636,26 +643,37 @@ void BatchSim::rewards_env(int env) {
   s.done[env] = world.done() ? 1 : 0;
 }
 
+// The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
+// in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
+// (kTargetNone). task_dist: the 2-D distance to it.
 void BatchSim::lockbox_retarget(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
+  const bool in_order = config_.world.lock_in_order();
   const float* agent = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
-  int best = -1;
+  int best = kTargetNone;
   float best_d = 0.0f;
   for (int b = 0; b < L.max_boxes; ++b) {
     const size_t i = size_t(env) * L.max_boxes + b;
     if (s.box_exists[i] == 0 || s.box_locked[i] != 0) continue;
     const float d = std::hypot(s.box_pos[3 * i] - agent[0], s.box_pos[3 * i + 1] - agent[1]);
     if (best < 0 || d < best_d) best = b, best_d = d;
+    if (in_order) break;
+  }
+  if (best == kTargetNone && config_.world.task == physics::WorldConfig::Task::kLockReturn) {
+    const float* spawn = s.task_spawn.data() + size_t(env) * 2;
+    best = kTargetSpawn;
+    best_d = std::hypot(spawn[0] - agent[0], spawn[1] - agent[1]);
   }
   s.task_target[env] = best;
   s.task_dist[env] = best_d;
 }
 
-// SPEC §9.2, target 'all', for agent 0 (every agent of the env gets the same reward): +lock_reward per newly
-// locked box, -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance
-// to the target box, +scale x the old distance when the target gets locked, -scale x the new target's
-// distance when a box gets unlocked; +success_reward every step all boxes are locked.
+// SPEC §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked box,
+// -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance to the
+// target, +scale x the old distance when the target box gets locked, -scale x the new target's distance when
+// a box gets unlocked; +success_reward every step the task is complete: all boxes locked (and in kLockReturn
+// agent 0 within return_threshold of its spawn).
 void BatchSim::lockbox_rewards_env(int env, float* reward) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -677,11 +695,14 @@ void BatchSim::lockbox_rewards_env(int env, float* reward) {
   } else if (newly_unlocked > 0) {
     lockbox_retarget(env);
     r -= wc.shaped_reward_scale * s.task_dist[env];
-  } else if (target >= 0) {
+  } else if (target != kTargetNone) {
     lockbox_retarget(env);
     r += wc.shaped_reward_scale * (old_dist - s.task_dist[env]);
   }
-  if (s.task_target[env] < 0) r += wc.success_reward;
+  const int now = s.task_target[env];
+  if (now == kTargetNone || (now == kTargetSpawn && s.task_dist[env] <= wc.return_threshold)) {
+    r += wc.success_reward;
+  }
   std::fill_n(reward, L.max_agents, float(r));
 }
 

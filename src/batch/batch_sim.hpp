@@ -59,6 +59,10 @@ enum RunStat {
   kNumRunStats
 };
 
+// task_target values other than a box index.
+inline constexpr int32_t kTargetNone = -1;   // every box is locked, nothing left to do
+inline constexpr int32_t kTargetSpawn = -2;  // lock-and-return: every box is locked, go back to the spawn
+
 // Per-env sizes of every tensor, fixed per batch by the config's maxima.
 struct Layout {
   int max_agents = 0;                        // A
@@ -144,9 +148,10 @@ struct Layout {
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")            \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")    \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
-  /* Box-locking task (WorldConfig::Task::kLockBox, SPEC §9.2). */                                        \
-  X(int32_t, task_target, 1, "box the agent is sent to, -1 when all are locked (envs)")                    \
-  X(float, task_dist, 1, "agent 0's 2-D distance to the target box at the last step, m (envs)")            \
+  /* Box-locking tasks (WorldConfig::is_lock_task(), SPEC §9.2). */                                       \
+  X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")      \
+  X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                \
+  X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")    \
   X(uint8_t, task_locked, L.max_boxes, "box locked at the last step (envs x B)")                           \
   /* Observations per agent (SPEC §4.3-§4.6 with §14.1). */                                             \
   X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                  \
@@ -294,8 +299,8 @@ class BatchSim {
   void vision_env(int env);
   void lidar_env(int env);
   void rewards_env(int env);
-  void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 task 'all' for agent 0
-  void lockbox_retarget(int env);                    // nearest unlocked box and its distance
+  void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 box-locking tasks, for agent 0
+  void lockbox_retarget(int env);                    // agent 0's target and its distance
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).

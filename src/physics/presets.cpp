@@ -9,7 +9,11 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "full") return WorldConfig::full();
   if (name == "empty") return WorldConfig::empty();
   if (name == "lockbox") return WorldConfig::lockbox();
-  throw ConfigError("scene = '" + name + "' is invalid: must be one of quadrant, full, empty, lockbox");
+  if (name == "lock-and-return") return WorldConfig::lock_and_return();
+  if (name == "sequential-lock") return WorldConfig::sequential_lock();
+  std::string names;
+  for (const char* n : kSceneNames) names += std::string(names.empty() ? "" : ", ") + n;
+  throw ConfigError("scene = '" + name + "' is invalid: must be one of " + names);
 }
 
 void apply_overrides(WorldConfig& config, const CountOverrides& counts) {

@@ -272,16 +272,50 @@ class RoomBuilder {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
+// var_tri (SPEC §9.2): a full-length wall at cell s1 = int(30 U(0.4, 0.6)), vertical or horizontal with p =
+// 0.5, and a perpendicular wall at cell s2 = int(30 U(0.4, 0.6)) from it to the outer wall on its low or high
+// side with p = 0.5. No doors: three closed rooms, about a quarter, a quarter and a half of the arena.
+// Appends the two walls and the rooms' free cells (the two quarter rooms first, then the half).
+void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect>& rooms) {
+  constexpr int kLast = kGridSize - 1;  // the outer walls' row and column
+  const int s1 = static_cast<int>(kGridSize * rng.uniform(0.4, 0.6));
+  const int s2 = static_cast<int>(kGridSize * rng.uniform(0.4, 0.6));
+  const bool vertical = rng.bernoulli(0.5);
+  const bool high_side = rng.bernoulli(0.5);
+  // Built for a vertical first wall (x = s1); a horizontal one swaps x and y.
+  WallCells first{s1, 0, s1, kLast, false};
+  WallCells second = high_side ? WallCells{s1, s2, kLast, s2, false} : WallCells{0, s2, s1, s2, false};
+  const int split_lo = high_side ? s1 + 1 : 1, split_hi = high_side ? kLast : s1;  // the split side's cells
+  const int whole_lo = high_side ? 1 : s1 + 1, whole_hi = high_side ? s1 : kLast;
+  CellRect small_a{split_lo, 1, split_hi, s2}, small_b{split_lo, s2 + 1, split_hi, kLast};
+  CellRect large{whole_lo, 1, whole_hi, kLast};
+  if (!vertical) {
+    auto swap_wall = [](WallCells& w) { w = WallCells{w.y1, w.x1, w.y2, w.x2, w.outer}; };
+    auto swap_rect = [](CellRect& r) { r = CellRect{r.y0, r.x0, r.y1, r.x1}; };
+    swap_wall(first), swap_wall(second);
+    swap_rect(small_a), swap_rect(small_b), swap_rect(large);
+  }
+  walls.push_back(first);
+  walls.push_back(second);
+  rooms.assign({small_a, small_b, large});
+}
+
+// ---------------------------------------------------------------------------------------------------------------
 // Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
-enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo };
+enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom };
 
 struct Cell {
   int i = 0, j = 0;
 };
 
-Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, Rng& rng) {
+Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, const CellRect& room,
+                  Rng& rng) {
   constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
   switch (p) {
+    case Placement::kInRoom: {
+      const int i = rng.uniform_int(room.x0, std::max(room.x0, room.x1 - cx) + 1);
+      return {i, rng.uniform_int(room.y0, std::max(room.y0, room.y1 - cy) + 1)};
+    }
     case Placement::kQuadrant: {
       const int i = rng.uniform_int(kG - kQ, kG - cx - 1);
       return {i, rng.uniform_int(1, kQ - cy - 1)};
@@ -312,6 +346,7 @@ struct Request {
   double z = 0;                   // spawn height of the centre, m
   Cell anchor;                    // kCloseTo: the anchor's spawn cell
   int radius_cells = 0;           // kCloseTo: r = ceil(radius / 0.2)
+  CellRect room{};                // kInRoom: the room's free cells
 };
 
 // rejection_placement: up to `tries` proposals; the first whose cells are all free is jittered inside its
@@ -319,7 +354,7 @@ struct Request {
 bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Cell& cell) {
   const int cx = footprint_cells(req.sx), cy = footprint_cells(req.sy);
   for (int t = 0; t < tries; ++t) {
-    const Cell c = propose_cell(req.placement, cx, cy, req.anchor, req.radius_cells, rng);
+    const Cell c = propose_cell(req.placement, cx, cy, req.anchor, req.radius_cells, req.room, rng);
     if (!grid.free(c.i, c.j, cx, cy)) continue;
     const double corner_x = c.i * kCellSize + rng.uniform(0.0, cx * kCellSize - req.sx);
     const double corner_y = c.j * kCellSize + rng.uniform(0.0, cy * kCellSize - req.sy);
@@ -350,6 +385,8 @@ const char* placement_region(Placement p) {
       return "outside the quadrant room";
     case Placement::kCloseTo:
       return "near its team's first agent";
+    case Placement::kInRoom:
+      return "inside its room";
     case Placement::kUniform:
     default:
       return "anywhere in the arena";
@@ -380,6 +417,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.walls.clear();
   out.wall_boxes.clear();
   out.doors.clear();
+  out.rooms.clear();
   out.agents.clear();
   out.boxes.clear();
   out.ramps.clear();
@@ -422,6 +460,10 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       out.outer_walls = rng.bernoulli(config.prob_outside_walls);
       break;
     }
+    case Layout::kVarTri:
+      out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
+      var_tri_walls(rng, out.walls, out.rooms);
+      break;
   }
 
   // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (SPEC §2.4,
@@ -488,9 +530,13 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     out.boxes.push_back(spawn);
   }
 
-  // Ramps: uniform.
+  // Ramps: uniform; in var_tri, ramp r in room r mod 3 (the original's tri_placement).
   for (int r = 0; r < n.ramps; ++r) {
     Request req;
+    if (!out.rooms.empty()) {
+      req.placement = Placement::kInRoom;
+      req.room = out.rooms[size_t(r) % out.rooms.size()];
+    }
     req.sx = req.sy = req.sz = kRampSize;
     req.z = 0.5 * kRampSize;
     if (!place(req, tries, grid, rng, spawn, cell)) {
@@ -531,7 +577,9 @@ Layout parse_layout(const std::string& name) {
   if (name == "empty") return Layout::kEmpty;
   if (name == "quadrant") return Layout::kQuadrant;
   if (name == "randomwalls") return Layout::kRandomWalls;
-  throw ConfigError("layout = '" + name + "' is invalid: must be one of empty, quadrant, randomwalls");
+  if (name == "var_tri") return Layout::kVarTri;
+  throw ConfigError("layout = '" + name +
+                    "' is invalid: must be one of empty, quadrant, randomwalls, var_tri");
 }
 
 const char* layout_name(Layout layout) {
@@ -542,6 +590,8 @@ const char* layout_name(Layout layout) {
       return "quadrant";
     case Layout::kRandomWalls:
       return "randomwalls";
+    case Layout::kVarTri:
+      return "var_tri";
   }
   return "unknown";
 }
@@ -585,8 +635,9 @@ SceneConfig SceneConfig::empty() {
 }
 
 void SceneConfig::validate() const {
-  if (layout != Layout::kEmpty && layout != Layout::kQuadrant && layout != Layout::kRandomWalls) {
-    reject("layout", static_cast<int>(layout), "must be one of empty, quadrant, randomwalls");
+  if (layout != Layout::kEmpty && layout != Layout::kQuadrant && layout != Layout::kRandomWalls &&
+      layout != Layout::kVarTri) {
+    reject("layout", static_cast<int>(layout), "must be one of empty, quadrant, randomwalls, var_tri");
   }
   check_range("hiders", hiders);
   check_range("seekers", seekers);

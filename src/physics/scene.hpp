@@ -26,10 +26,10 @@ inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
 inline constexpr int kQuadrantSize = 15;  // quadrant: q_size = int(0.5 * grid size), the room walls' row and column
 
-// Wall layout of a scene.
-enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls };
+// Wall layout of a scene. kVarTri: three door-less rooms (SPEC §9.2 'var_tri', the sequential-lock task).
+enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls, kVarTri };
 
-// Parses "empty", "quadrant", "randomwalls"; throws ConfigError otherwise.
+// Parses "empty", "quadrant", "randomwalls", "var_tri"; throws ConfigError otherwise.
 Layout parse_layout(const std::string& name);
 const char* layout_name(Layout layout);
 
@@ -91,6 +91,11 @@ struct DoorCells {
   int x1, y1, x2, y2;
 };
 
+// A rectangle of grid cells, [x0, x1) x [y0, y1): a room's free interior.
+struct CellRect {
+  int x0, y0, x1, y1;
+};
+
 // A movable body's spawn: centre (m) and full extents (m). Yaw is always 0 at spawn.
 struct Spawn {
   double x, y, z;
@@ -103,6 +108,7 @@ struct Scene {
   std::vector<WallCells> walls;       // pieces after door splitting, >= 2 cells; no dropped outer walls
   std::vector<StaticBox> wall_boxes;  // the same walls as physical boxes (SPEC §1.3)
   std::vector<DoorCells> doors;
+  std::vector<CellRect> rooms;  // var_tri: the two small rooms, then the large one (empty otherwise)
   int num_hiders = 0;
   int num_seekers = 0;
   std::vector<Spawn> agents;  // hiders first, then seekers

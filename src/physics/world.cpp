@@ -243,6 +243,33 @@ WorldConfig WorldConfig::lockbox() {
   return c;
 }
 
+// SPEC §9: a lone hider (team 0) with the spoofed slots of a hide-and-seek policy (one other agent, one
+// ramp at least), grab and lock as in the game, no preparation phase.
+WorldConfig WorldConfig::lock_and_return() {
+  WorldConfig c = lockbox();
+  c.scene.layout = Layout::kRandomWalls;
+  c.scene.rooms = {6, 6};
+  c.scene.prob_outside_walls = 1.0;
+  c.scene.door_size = 2;
+  c.horizon = 120;
+  c.task = Task::kLockReturn;
+  c.obs_min_agents = 2;
+  c.obs_min_ramps = 1;
+  return c;
+}
+
+WorldConfig WorldConfig::sequential_lock() {
+  WorldConfig c = lockbox();
+  c.scene.layout = Layout::kVarTri;
+  c.scene.boxes = {4, 4};
+  c.scene.ramps = {3, 3};
+  c.horizon = 120;
+  c.lock_ramps = true;
+  c.task = Task::kSequentialLock;
+  c.obs_min_agents = 2;
+  return c;
+}
+
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
 }
@@ -270,8 +297,15 @@ void WorldConfig::validate() const {
   check(physics.cfm >= 0 && physics.cfm <= 1, "physics.cfm", physics.cfm, "must be in [0, 1]");
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
-  check(task == Task::kHideAndSeek || task == Task::kLockBox, "task", int(task),
-        "must be hide_and_seek (0) or lockbox (1)");
+  check(task == Task::kHideAndSeek || task == Task::kLockBox || task == Task::kLockReturn ||
+            task == Task::kSequentialLock,
+        "task", int(task), "must be hide_and_seek (0), lockbox (1), lock_return (2) or sequential_lock (3)");
+  check(!is_lock_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
+        "must be >= 1 in a box-locking task (agent 0 does the task)");
+  check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
+        "must be in (0, 6] m");
+  check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
+  check(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps, "must be in [0, 16]");
   check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
   check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty,
         "must be in [0, 1000]");
@@ -678,14 +712,23 @@ void World::apply_lock(std::span<const AgentAction> actions) {
   const int n_obj = num_objects();
   const int first = config_.lock_ramps ? n_obj - 1 : num_boxes() - 1;
   // Ramps first, then boxes (the original's wrapper order).
+  // Sequential lock: lock requests for boxes after the first unlocked one (as this step starts) are masked,
+  // as if the agent did not press lock.
+  int next_in_order = num_boxes();
+  if (config_.lock_in_order()) {
+    for (int b = num_boxes() - 1; b >= 0; --b) {
+      if (locked_[b] == 0) next_in_order = b;
+    }
+  }
   for (int obj = first; obj >= 0; --obj) {
     int desiring = 0;
     bool unlock = false;
+    const bool masked = obj < num_boxes() && obj > next_in_order;
     for (int a = 0; a < num_agents(); ++a) {
       scratch_[a] = 0;
       if (visibility_[size_t(a) * n_obj + obj] == 0) continue;
       if (agent_object_distance(a, obj) > config_.lock_radius) continue;
-      if (actions[a].lock != 0) {
+      if (actions[a].lock != 0 && !masked) {
         scratch_[a] = 1;
         ++desiring;
       } else if (lock_team_[obj] >= 0 && int(team(a)) == lock_team_[obj]) {

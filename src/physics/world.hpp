@@ -52,20 +52,34 @@ struct WorldConfig {
   // costs every agent -10.
   double restrict_rect[4] = {0.1, 0.1, 5.9, 5.9};
   bool penalize_objects_out = true;
-  // The reward the batch layer computes: the hide-and-seek game (SPEC §5) or the box-locking task of SPEC
-  // §9.2 (target 'all': the nearest unlocked box; no return), which the PPO learning test uses.
-  enum class Task : uint8_t { kHideAndSeek, kLockBox };
+  // The reward the batch layer computes: the hide-and-seek game (SPEC §5) or one of the box-locking tasks of
+  // SPEC §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
+  // kLockReturn ('all-return': then back to the spawn) and kSequentialLock ('order': boxes in index order,
+  // locks of boxes after the first unlocked one refused).
+  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock };
   Task task = Task::kHideAndSeek;
-  double lock_reward = 5.0;          // kLockBox: per newly locked box
-  double unlock_penalty = 5.0;       // kLockBox: per newly unlocked box
-  double shaped_reward_scale = 0.5;  // kLockBox: per m the agent gets closer to its target box (2-D)
-  double success_reward = 1.0;       // kLockBox: every step all boxes are locked
+  double lock_reward = 5.0;          // box-locking tasks: per newly locked box
+  double unlock_penalty = 5.0;       // per newly unlocked box
+  double shaped_reward_scale = 0.5;  // per m the agent gets closer to its target (2-D)
+  double success_reward = 1.0;       // every step the task is complete
+  double return_threshold = 0.1;     // kLockReturn: m (2-D) from the spawn that counts as returned
+  // Observation slots at least this many (0 = the scene's maxima): a transfer task's lone agent sees a
+  // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (SPEC §9 spoofed obs).
+  int obs_min_agents = 0;
+  int obs_min_ramps = 0;
+  bool is_lock_task() const { return task != Task::kHideAndSeek; }
+  // kSequentialLock: box locks are refused for boxes after the first unlocked one.
+  bool lock_in_order() const { return task == Task::kSequentialLock; }
 
   static WorldConfig quadrant();
   static WorldConfig full();
   static WorldConfig empty();
   // One hider and one cube in the empty room, task kLockBox, horizon 60, no preparation phase.
   static WorldConfig lockbox();
+  // The transfer tasks of SPEC §9.2: lock the box in one of 6 random rooms and return to the spawn (horizon
+  // 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room (horizon 120).
+  static WorldConfig lock_and_return();
+  static WorldConfig sequential_lock();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;

@@ -295,13 +295,18 @@ std::string Trainer::initialize_from(const std::string& path) {
     batch::BatchConfig bc;
     bc.world = saved.world();
     const nn::ObsShape theirs = obs_shape(batch::Layout::of(bc));
-    if (theirs.max_agents != mine.max_agents || theirs.max_boxes != mine.max_boxes ||
-        theirs.max_ramps != mine.max_ramps) {
-      return "observation slots: the checkpoint's scene " + saved.scene + " has " +
-             std::to_string(theirs.max_agents) + " agents, " + std::to_string(theirs.max_boxes) + " boxes, " +
-             std::to_string(theirs.max_ramps) + " ramps, this run's " + cfg_.scene + " " +
-             std::to_string(mine.max_agents) + ", " + std::to_string(mine.max_boxes) + ", " +
-             std::to_string(mine.max_ramps);
+    // The weights depend on which entity types a scene has, not on their slot counts (the embeddings are
+    // shared by the slots of a type and pooled): a hide-and-seek policy acts in a transfer task with more or
+    // fewer boxes.
+    auto types = [](const nn::ObsShape& o) {
+      return std::to_string(o.max_agents - 1) + " other agents, " + std::to_string(o.max_boxes) + " boxes, " +
+             std::to_string(o.max_ramps) + " ramps";
+    };
+    if ((theirs.max_agents > 1) != (mine.max_agents > 1) || (theirs.max_boxes > 0) != (mine.max_boxes > 0) ||
+        (theirs.max_ramps > 0) != (mine.max_ramps > 0)) {
+      return "observation slots: the checkpoint's scene " + saved.scene + " has " + types(theirs) +
+             ", this run's " + cfg_.scene + " " + types(mine) +
+             "; the entity types present (other agents, boxes, ramps) must be the same";
     }
     return "";
   });

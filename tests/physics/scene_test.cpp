@@ -245,7 +245,7 @@ int interior_walls(const Scene& s, std::string& why) {
 
 // ---------------------------------------------------------------------------------------------------------------
 TEST(SceneLayout, ParsesNamesAndRejectsUnknownOnes) {
-  for (Layout layout : {Layout::kEmpty, Layout::kQuadrant, Layout::kRandomWalls}) {
+  for (Layout layout : {Layout::kEmpty, Layout::kQuadrant, Layout::kRandomWalls, Layout::kVarTri}) {
     EXPECT_EQ(parse_layout(layout_name(layout)), layout);
   }
   EXPECT_STREQ(layout_name(Layout::kRandomWalls), "randomwalls");
@@ -329,6 +329,60 @@ TEST(SceneGeneration, EveryPresetSpawnsValidScenes) {
       }
     }
   }
+}
+
+// The sequential-lock layout (SPEC §9.2 var_tri): two interior walls, no doors, three rooms whose free cells
+// are everything the walls leave, one ramp per room.
+TEST(SceneVarTri, ThreeClosedRoomsOneRampEach) {
+  SceneConfig config = SceneConfig::empty();
+  config.layout = Layout::kVarTri;
+  config.hiders = {1, 1};
+  config.seekers = {0, 0};
+  config.boxes = {4, 4};
+  config.ramps = {3, 3};
+  std::set<std::string> shapes;
+  for (int seed = 0; seed < 500; ++seed) {
+    const Scene s = make_scene(config, seed);
+    ASSERT_TRUE(valid_scene(config, s)) << seed;
+    ASSERT_EQ(s.walls.size(), 6u);
+    ASSERT_TRUE(s.doors.empty());
+    ASSERT_EQ(s.rooms.size(), 3u);
+    std::vector<int> owner(size_t(kGridSize) * kGridSize, -1);  // room of each cell, -2 = wall
+    for (const WallCells& w : s.walls) {
+      for (int x = std::min(w.x1, w.x2); x <= std::max(w.x1, w.x2); ++x) {
+        for (int y = std::min(w.y1, w.y2); y <= std::max(w.y1, w.y2); ++y) owner[x * kGridSize + y] = -2;
+      }
+    }
+    int areas[3];
+    for (int r = 0; r < 3; ++r) {
+      const CellRect& room = s.rooms[r];
+      areas[r] = (room.x1 - room.x0) * (room.y1 - room.y0);
+      for (int x = room.x0; x < room.x1; ++x) {
+        for (int y = room.y0; y < room.y1; ++y) {
+          ASSERT_EQ(owner[x * kGridSize + y], -1)
+              << "seed " << seed << ": room " << r << " overlaps a wall or room";
+          owner[x * kGridSize + y] = r;
+        }
+      }
+    }
+    // Every cell is a wall's or a room's: the rooms are closed by the walls.
+    ASSERT_EQ(std::count(owner.begin(), owner.end(), -1), 0) << seed;
+    // Two rooms of about a quarter, one of about a half (the interior is 28 x 28 = 784 cells).
+    EXPECT_GE(areas[0], 784 * 0.4 * 0.4 - 40) << seed;
+    EXPECT_GE(areas[2], 784 * 0.4 - 40) << seed;
+    EXPECT_LE(areas[2], 784 * 0.6) << seed;
+    for (int r = 0; r < 3; ++r) {
+      const CellRect& room = s.rooms[r];
+      const Rect f = rect_of(s.ramps[r]);
+      EXPECT_TRUE(f.x0 >= room.x0 * kCellSize - kEps && f.x1 <= room.x1 * kCellSize + kEps &&
+                  f.y0 >= room.y0 * kCellSize - kEps && f.y1 <= room.y1 * kCellSize + kEps)
+          << "seed " << seed << ": ramp " << r << " outside its room";
+    }
+    const WallCells& first = s.walls[4];
+    shapes.insert(std::string(first.x1 == first.x2 ? "vertical" : "horizontal") +
+                  (s.rooms[2].x0 == 1 && s.rooms[2].y0 == 1 ? " low" : " high"));
+  }
+  EXPECT_EQ(shapes.size(), 4u);  // both orientations, the split on either side
 }
 
 TEST(SceneGeneration, EmptyLayoutHasOnlyTheOuterWalls) {

@@ -68,7 +68,7 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("lr", "-1", "lr");
   rejects("lr", "fast", "must be a finite number");
   rejects("envs", "2.5", "must be an integer");
-  rejects("scene", "moon", "quadrant, full, empty, lockbox");
+  rejects("scene", "moon", "quadrant, full, empty, lockbox, lock-and-return, sequential-lock");
   rejects("model", "huge", "small, paper");
   rejects("bptt", "7", "must divide the rollout length");
   rejects("grad_groups", "0", "grad_groups");
@@ -459,10 +459,29 @@ TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
   TrainConfig paper = tiny_quadrant();
   paper.model = "paper";
   expect_refused(paper, "model: checkpoint has small, this run has paper");
-  TrainConfig full = tiny_quadrant();
-  full.scene = "full";
-  full.horizon = 20;
-  expect_refused(full, "observation slots: the checkpoint's scene quadrant has 4 agents");
+  TrainConfig lockbox = tiny_quadrant();
+  lockbox.scene = "lockbox";
+  expect_refused(lockbox,
+                 "observation slots: the checkpoint's scene quadrant has 3 other agents, 2 boxes, 1 ramps");
+
+  // The transfer tasks (and the full game) have the quadrant policy's entity types, in other counts: its
+  // policy weights act there unchanged, and the run goes on.
+  for (const char* scene : {"full", "lock-and-return", "sequential-lock"}) {
+    TrainConfig c = tiny_quadrant();
+    c.scene = scene;
+    c.init_from = path;
+    Trainer t(c);
+    EXPECT_NE(t.initialize_from(path).find("policy weights"), std::string::npos) << scene;
+    const std::vector<float> got = params_of(t);
+    for (const nn::ParamSlice& slice : t.net().params().layout().slices()) {
+      if (is_value(slice)) continue;
+      EXPECT_TRUE(std::equal(got.begin() + long(slice.offset),
+                             got.begin() + long(slice.offset + slice.size()),
+                             trained.begin() + long(slice.offset)))
+          << scene << " " << slice.name;
+    }
+    EXPECT_NO_THROW(t.iterate()) << scene;
+  }
   std::remove(path.c_str());
   std::remove(mid.c_str());
 }
