@@ -400,6 +400,12 @@ class BatchEnv {
       for (int k = 0; k < 6; ++k) walls.mutable_at(py::ssize_t(i), k) = v[k];
     }
     d["walls"] = walls;
+    py::array_t<double> cylinders(Shape{sc.has_target ? 1 : 0, 4});
+    if (sc.has_target) {
+      const double v[4] = {sc.target.x, sc.target.y, 0.5 * sc.target.sx, sc.target.sz};
+      for (int k = 0; k < 4; ++k) cylinders.mutable_at(0, k) = v[k];
+    }
+    d["cylinders"] = cylinders;
     py::array_t<int32_t> doors(Shape{py::ssize_t(sc.doors.size()), 4});
     for (size_t i = 0; i < sc.doors.size(); ++i) {
       const phys::DoorCells& c = sc.doors[i];
@@ -648,6 +654,10 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   for (size_t i = 0; i < ep.walls.size(); ++i)
     for (int k = 0; k < 6; ++k) walls.mutable_at(py::ssize_t(i), k) = ep.walls[i][size_t(k)];
   d["walls"] = walls;
+  py::array_t<double> cylinders(Shape{py::ssize_t(ep.cylinders.size()), 4});
+  for (size_t i = 0; i < ep.cylinders.size(); ++i)
+    for (int k = 0; k < 4; ++k) cylinders.mutable_at(py::ssize_t(i), k) = ep.cylinders[i][size_t(k)];
+  d["cylinders"] = cylinders;
   py::array_t<double> sizes(Shape{py::ssize_t(ep.box_sizes.size()), 3});
   for (size_t i = 0; i < ep.box_sizes.size(); ++i)
     for (int k = 0; k < 3; ++k) sizes.mutable_at(py::ssize_t(i), k) = ep.box_sizes[i][size_t(k)];

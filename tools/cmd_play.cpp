@@ -101,7 +101,7 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* cmd =
       app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
   cmd->add_option("--scene", opt->scene, "Scene preset (default quadrant, or the checkpoint's)")
-      ->check(CLI::IsMember(std::vector<std::string>(phys::kSceneNames.begin(), physics::kSceneNames.end())));
+      ->check(CLI::IsMember(std::vector<std::string>(phys::kSceneNames.begin(), phys::kSceneNames.end())));
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
   cmd->add_option("--checkpoint", opt->checkpoint, "Act with the policy of a training checkpoint (its scene)")
       ->excludes(random);

@@ -543,7 +543,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* sub = app.add_subcommand("train", "Train hide-and-seek agents with PPO self-play");
   sub->add_option("--config", opt->config_file, "Flat JSON config file (keys as in a run's config.json)");
   sub->add_option("--scene", opt->scene,
-                  "quadrant | full | empty | lockbox | lock-and-return | sequential-lock");
+                  "quadrant | full | empty | lockbox | lock-and-return | sequential-lock | shelter");
   sub->add_option("--model", opt->model, "small | paper");
   sub->add_option("--iterations", opt->iterations, "Total iterations of the run");
   sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling, 0 .. 2^64 - 1");

@@ -106,6 +106,7 @@ Layout Layout::of(const BatchConfig& config) {
   L.shape_boxes = L.max_walls + L.max_boxes;
   L.shape_wedges = L.max_ramps;
   L.shape_spheres = Layout::kSpheresPerAgent * L.max_agents;
+  L.shape_cylinders = scene.target_diameter_max > 0 ? 1 : 0;
   return L;
 }
 
@@ -305,6 +306,13 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
     state_.shape_box_c[sb + w] = 1.0f;
     state_.shape_box_s[sb + w] = 0.0f;
   }
+  if (layout_.shape_cylinders > 0) {
+    const physics::Spawn& t = scene.target;
+    state_.shape_cyl_cx[env] = scene.has_target ? float(t.x) : 0.0f;
+    state_.shape_cyl_cy[env] = scene.has_target ? float(t.y) : 0.0f;
+    state_.shape_cyl_r[env] = scene.has_target ? float(0.5 * t.sx) : 0.0f;
+    state_.shape_cyl_h[env] = scene.has_target ? float(t.sz) : 0.0f;
+  }
   refresh_env(env);
   std::copy_n(state_.box_pos.data() + size_t(env) * layout_.max_boxes * 3, layout_.max_boxes * 3,
               state_.box_pos_start.data() + size_t(env) * layout_.max_boxes * 3);
@@ -467,6 +475,11 @@ ShapesView BatchSim::shapes(int env) const {
   v.live_spheres = Layout::kSpheresPerAgent * world.num_agents();
   v.spheres_per_body = Layout::kSpheresPerAgent;
   v.body_reach = kAgentReach;
+  const size_t c = size_t(env) * layout_.shape_cylinders;
+  v.cyl_cx = s.shape_cyl_cx.data() + c, v.cyl_cy = s.shape_cyl_cy.data() + c;
+  v.cyl_r = s.shape_cyl_r.data() + c, v.cyl_h = s.shape_cyl_h.data() + c;
+  v.num_cylinders = layout_.shape_cylinders;
+  v.live_cylinders = world.scene().has_target ? 1 : 0;
   return v;
 }
 
@@ -606,8 +619,12 @@ void BatchSim::rewards_env(int env) {
   }
   const bool prep = t <= wc.prep_steps();
   float* reward = s.reward.data() + size_t(env) * L.max_agents;
-  if (wc.is_lock_task()) {
-    lockbox_rewards_env(env, reward);
+  if (wc.is_transfer_task()) {
+    if (wc.is_lock_task()) {
+      lockbox_rewards_env(env, reward);
+    } else {
+      shelter_rewards_env(env, reward);
+    }
     for (int a = 0; a < L.max_agents; ++a) {
       if (a < n && outside(pos + 3 * a)) reward[a] = kOutOfBoundsReward;
       if (a >= n) reward[a] = 0.0f;
@@ -641,6 +658,47 @@ void BatchSim::rewards_env(int env) {
     measure_env(env, s.stat_prep.data() + size_t(env) * Layout::kPrepStats);
   }
   s.done[env] = world.done() ? 1 : 0;
+}
+
+// The shelter reward's rays (SPEC §9.3): 25 start points per side of the square [0.202, 5.798]² on the floor
+// (np.linspace along each side: the corners start two rays each), aimed at the cylinder's centre. A ray
+// reaches the cylinder when nothing else lies on the segment from its start to the cylinder; the segments
+// are cast the other way, as one fan from the centre that skips the cylinder (nothing else can be inside
+// it), so the 100 rays share the vector kernel's blocks.
+namespace {
+constexpr int kShelterRaysPerSide = 25;
+constexpr int kShelterRays = 4 * kShelterRaysPerSide;
+constexpr float kShelterEdgeLo = 0.202f, kShelterEdgeHi = 5.798f;  // m
+constexpr float kShelterRayCost = 0.001f;                          // reward per ray that reaches the cylinder
+}  // namespace
+
+int BatchSim::shelter_rays_reaching(int env) const {
+  const physics::Scene& scene = worlds_[env]->scene();
+  if (!scene.has_target) return 0;
+  const ShapesView shapes = this->shapes(env);
+  const float cx = float(scene.target.x), cy = float(scene.target.y), cz = float(scene.target.z);
+  alignas(64) float dx[kShelterRays], dy[kShelterRays], dz[kShelterRays], len[kShelterRays], t[kShelterRays];
+  alignas(64) int32_t id[kShelterRays];
+  for (int side = 0; side < 4; ++side) {
+    for (int k = 0; k < kShelterRaysPerSide; ++k) {
+      const int i = side * kShelterRaysPerSide + k;
+      const float u =
+          kShelterEdgeLo + (kShelterEdgeHi - kShelterEdgeLo) * float(k) / (kShelterRaysPerSide - 1);
+      const float ox = side == 0 || side == 2 ? u : side == 1 ? kShelterEdgeHi : kShelterEdgeLo;
+      const float oy = side == 1 || side == 3 ? u : side == 0 ? kShelterEdgeLo : kShelterEdgeHi;
+      const float ex = ox - cx, ey = oy - cy, ez = 0.0f - cz;
+      len[i] = std::sqrt(ex * ex + ey * ey + ez * ez);
+      dx[i] = ex / len[i], dy[i] = ey / len[i], dz[i] = ez / len[i];
+    }
+  }
+  first_hits(shapes, RayFan{cx, cy, cz, dx, dy, dz, len, kShelterRays, shapes.cylinder_id(0)}, t, id);
+  int reaching = 0;
+  for (int i = 0; i < kShelterRays; ++i) reaching += id[i] < 0;
+  return reaching;
+}
+
+void BatchSim::shelter_rewards_env(int env, float* reward) {
+  std::fill_n(reward, layout_.max_agents, -kShelterRayCost * float(shelter_rays_reaching(env)));
 }
 
 // The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one

@@ -73,6 +73,7 @@ struct Layout {
   int shape_boxes = 0;                       // ray-cast shape slots: walls + boxes
   int shape_wedges = 0;                      // ramps
   int shape_spheres = 0;                     // agents and their arms: kSpheresPerAgent slots each
+  int shape_cylinders = 0;                   // the shelter task's static cylinder: 1 or 0
   static constexpr int kSelfFeatures = 11;   // pos 3, cos/sin yaw, vel 3, ang vel, hider, prep
   static constexpr int kAgentFeatures = 11;  // the same for another agent
   static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock
@@ -131,6 +132,10 @@ struct Layout {
   X(float, shape_sphere_cy, L.shape_spheres, "centre y, m")                                                \
   X(float, shape_sphere_cz, L.shape_spheres, "centre z, m")                                                \
   X(float, shape_sphere_r, L.shape_spheres, "radius, m")                                                   \
+  X(float, shape_cyl_cx, L.shape_cylinders, "shelter cylinder's axis x, m (envs x SC, SC = 0 or 1)")       \
+  X(float, shape_cyl_cy, L.shape_cylinders, "axis y, m")                                                   \
+  X(float, shape_cyl_r, L.shape_cylinders, "radius, m")                                                    \
+  X(float, shape_cyl_h, L.shape_cylinders, "height, m (it stands on the floor)")                           \
   X(int32_t, num_walls, 1, "walls of this episode's scene (envs)")                                         \
   /* Perception (SPEC §4.1, §4.2). */                                                                    \
   X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")    \
@@ -288,6 +293,9 @@ class BatchSim {
   // Re-reads env e's bodies from its world and recomputes vision, lidar and observations exactly as a step
   // does after physics (rewards, statistics and counters are left alone).
   void resync(int env);
+  // Shelter (SPEC §9.3): how many of the 100 rays from the arena's edges first hit env e's cylinder now (0
+  // without one); the step's reward is -0.001 per ray.
+  int shelter_rays_reaching(int env) const;
 
  private:
   struct EnvScratch;
@@ -301,6 +309,7 @@ class BatchSim {
   void rewards_env(int env);
   void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 box-locking tasks, for agent 0
   void lockbox_retarget(int env);                    // agent 0's target and its distance
+  void shelter_rewards_env(int env, float* reward);  // SPEC §9.3
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).

@@ -122,6 +122,30 @@ F ray_wedge(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float c
   return in.entry();
 }
 
+// Entry distance into a vertical cylinder standing on the floor (axis (cx, cy), z in [0, h]), or kNoHitT: its
+// side at the smaller root of |p + t d|² = r² in the plane, within the height, or its top cap from above.
+template <class F>
+F ray_cylinder(const RayFan& fan, const RayBlock<F>& r, float cx, float cy, float radius, float h) {
+  using O = Ops<F>;
+  const float px = fan.ox - cx, py = fan.oy - cy, oz = fan.oz;
+  const float c = px * px + py * py - radius * radius;
+  if (c <= 0.0f && oz >= 0.0f && oz <= h) return F(0.0f);  // the origin inside
+  const F zero(0.0f);
+  const F a = r.dx * r.dx + r.dy * r.dy, b = F(px) * r.dx + F(py) * r.dy;
+  const F disc = b * b - a * F(c);
+  const F side = (F(0.0f) - b - O::sqrt(O::max(disc, zero))) / a;
+  const F z = F(oz) + side * r.dz;
+  const auto side_hit = (a > zero) & (disc >= zero) & (side >= zero) & (z >= zero) & (z <= F(h));
+  F best = O::select(side_hit, side, F(kNoHitT));
+  if (oz > h) {
+    const F top = F(h - oz) * r.inv_dz;
+    const F x = F(px) + top * r.dx, y = F(py) + top * r.dy;
+    const auto top_hit = (r.dz < zero) & (x * x + y * y <= F(radius * radius));
+    best = O::min(best, O::select(top_hit, top, F(kNoHitT)));
+  }
+  return O::select(best <= r.max_t, best, F(kNoHitT));
+}
+
 // How the rays pass a point (a sphere's centre): m = origin - point (the same for every ray), b = m·d per ray
 // (negative while the point is ahead).
 template <class F>
@@ -210,6 +234,10 @@ Nearest<F> cast_block(const ShapesView& s, const RayFan& fan, int i) {
       const Approach<F> part(fan, r, s.sphere_cx[k], s.sphere_cy[k], s.sphere_cz[k]);
       best.keep(arm_sphere_entry(part, r, s.sphere_r[k]), id);
     }
+  }
+  for (int k = 0; k < s.live_cylinders; ++k) {
+    if (s.cylinder_id(k) == fan.skip_id) continue;
+    best.keep(ray_cylinder(fan, r, s.cyl_cx[k], s.cyl_cy[k], s.cyl_r[k], s.cyl_h[k]), s.cylinder_id(k));
   }
   return best;
 }

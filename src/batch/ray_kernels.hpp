@@ -37,10 +37,15 @@ struct ShapesView {
   // Every sphere of a body lies within this distance of the body's first sphere's centre (m). A block of
   // rays that all pass farther away skips the body's other spheres: an early out that changes no result.
   float body_reach = 0.0f;
+  // Static vertical cylinders on the floor (the shelter task's target): axis (cx, cy), radius, height (m).
+  const float *cyl_cx = nullptr, *cyl_cy = nullptr, *cyl_r = nullptr, *cyl_h = nullptr;
+  int num_cylinders = 0, live_cylinders = 0;
 
   int wedge_id(int i) const { return num_boxes + i; }
   // The id of sphere body i (slots [i·spheres_per_body, (i + 1)·spheres_per_body)).
   int sphere_id(int i) const { return num_boxes + num_wedges + i; }
+  // The id of cylinder i, after every sphere body's.
+  int cylinder_id(int i) const { return sphere_id(num_spheres / spheres_per_body) + i; }
 };
 
 // `count` rays from one origin: per ray a unit direction and a length (hits farther away are ignored).

@@ -71,6 +71,28 @@ double ray_sphere(const double origin[3], const double dir[3], const Sphere& sp)
   return -b - std::sqrt(disc);
 }
 
+double ray_cylinder(const double origin[3], const double dir[3], const Cylinder& cyl) {
+  const double px = origin[0] - cyl.cx, py = origin[1] - cyl.cy, oz = origin[2];
+  const double c = px * px + py * py - cyl.r * cyl.r;
+  if (c <= 0 && oz >= 0 && oz <= cyl.h) return 0;  // origin inside
+  double best = kNoHit;
+  // The side: |p + t d|² = r² in the plane, entered at the smaller root, within the height.
+  const double a = dir[0] * dir[0] + dir[1] * dir[1], b = px * dir[0] + py * dir[1];
+  const double disc = b * b - a * c;
+  if (a > 0 && disc >= 0) {
+    const double t = (-b - std::sqrt(disc)) / a;
+    const double z = oz + t * dir[2];
+    if (t >= 0 && z >= 0 && z <= cyl.h) best = t;
+  }
+  // The top cap, from above.
+  if (dir[2] < 0 && oz > cyl.h) {
+    const double t = (cyl.h - oz) / dir[2];
+    const double x = px + t * dir[0], y = py + t * dir[1];
+    if (x * x + y * y <= cyl.r * cyl.r) best = std::min(best, t);
+  }
+  return best;
+}
+
 RayHit cast_ray(const Occluders& occ, const double origin[3], const double dir[3], double max_t,
                 int skip_agent) {
   RayHit hit;
@@ -95,6 +117,8 @@ RayHit cast_ray(const Occluders& occ, const double origin[3], const double dir[3
     const int agent = int(i / 2);
     if (agent != skip_agent) consider(ray_sphere(origin, dir, occ.arms[i]), HitKind::kAgent, agent);
   }
+  for (size_t i = 0; i < occ.cylinders.size(); ++i)
+    consider(ray_cylinder(origin, dir, occ.cylinders[i]), HitKind::kCylinder, int(i));
   return hit;
 }
 

@@ -50,6 +50,12 @@ struct Sphere {
   double r;
 };
 
+// A static vertical cylinder standing on the floor (the shelter task's target): axis (cx, cy), z in [0, h].
+struct Cylinder {
+  double cx, cy;
+  double r, h;
+};
+
 // Every occluder of one world. Walls and boxes are OrientedBoxes, agents spheres. An agent's arms, if
 // given, are spheres that belong to it: arms[2a] and arms[2a + 1] are agent a's.
 struct Occluders {
@@ -58,6 +64,7 @@ struct Occluders {
   std::span<const Wedge> ramps;
   std::span<const Sphere> agents;
   std::span<const Sphere> arms = {};
+  std::span<const Cylinder> cylinders = {};
 };
 
 // The point a line of sight to a ramp aims at, and its vision cone tests: the ramp's centroid, for a
@@ -81,7 +88,7 @@ void arm_centres(const T centre[3], T c, T s, T out[2][3]) {
   }
 }
 
-enum class HitKind : uint8_t { kNone, kWall, kBox, kRamp, kAgent };
+enum class HitKind : uint8_t { kNone, kWall, kBox, kRamp, kAgent, kCylinder };
 
 struct RayHit {
   double t = 0;  // distance along the unit direction, m
@@ -96,6 +103,7 @@ inline constexpr double kNoHit = 1e30;
 double ray_box(const double origin[3], const double dir[3], const OrientedBox& box);
 double ray_wedge(const double origin[3], const double dir[3], const Wedge& wedge);
 double ray_sphere(const double origin[3], const double dir[3], const Sphere& sphere);
+double ray_cylinder(const double origin[3], const double dir[3], const Cylinder& cylinder);
 
 // First hit strictly nearer than max_t, skipping agent `skip_agent` (the viewer's own body and arms; -1 for
 // none). A hit on an agent's arm reports that agent.

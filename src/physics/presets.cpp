@@ -11,6 +11,7 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "lockbox") return WorldConfig::lockbox();
   if (name == "lock-and-return") return WorldConfig::lock_and_return();
   if (name == "sequential-lock") return WorldConfig::sequential_lock();
+  if (name == "shelter") return WorldConfig::shelter();
   std::string names;
   for (const char* n : kSceneNames) names += std::string(names.empty() ? "" : ", ") + n;
   throw ConfigError("scene = '" + name + "' is invalid: must be one of " + names);

@@ -302,7 +302,7 @@ void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect
 
 // ---------------------------------------------------------------------------------------------------------------
 // Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
-enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom };
+enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom, kMiddle };
 
 struct Cell {
   int i = 0, j = 0;
@@ -312,6 +312,11 @@ Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, co
                   Rng& rng) {
   constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
   switch (p) {
+    case Placement::kMiddle: {  // uniform_placement_middle(0.7): the central 70 % of the grid
+      const int lo = static_cast<int>(0.5 * kG - 0.35 * kG), hi = static_cast<int>(0.5 * kG + 0.35 * kG);
+      const int i = rng.uniform_int(lo, std::max(lo + 1, hi - cx - 1));
+      return {i, rng.uniform_int(lo, std::max(lo + 1, hi - cy - 1))};
+    }
     case Placement::kInRoom: {
       const int i = rng.uniform_int(room.x0, std::max(room.x0, room.x1 - cx) + 1);
       return {i, rng.uniform_int(room.y0, std::max(room.y0, room.y1 - cy) + 1)};
@@ -369,7 +374,7 @@ bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Ce
 // ---------------------------------------------------------------------------------------------------------------
 // Why the last attempt failed, for the final error message.
 struct Failure {
-  const char* object = "";  // "hider", "seeker", "box", "ramp" or "rooms"
+  const char* object = "";  // "hider", "seeker", "box", "ramp", "target" or "rooms"
   int index = 0;
   const char* kind = "";  // agent, box kind or ramp
   int cx = 0, cy = 0;
@@ -387,6 +392,8 @@ const char* placement_region(Placement p) {
       return "near its team's first agent";
     case Placement::kInRoom:
       return "inside its room";
+    case Placement::kMiddle:
+      return "in the middle of the arena";
     case Placement::kUniform:
     default:
       return "anywhere in the arena";
@@ -421,6 +428,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.agents.clear();
   out.boxes.clear();
   out.ramps.clear();
+  out.has_target = false;
   out.num_hiders = n.hiders;
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
@@ -484,6 +492,21 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       std::min(kGridSize, static_cast<int>(std::ceil(config.together_radius / kCellSize - 1e-9)));
   Spawn spawn;
   Cell cell, first_of_team;
+
+  // Shelter's cylinder, before anything movable (its diameter drawn first).
+  if (config.target_diameter_max > 0) {
+    Request req;
+    req.placement = Placement::kMiddle;
+    req.sx = req.sy = rng.uniform(config.target_diameter_min, config.target_diameter_max);
+    req.sz = kTargetHeight;
+    req.z = 0.5 * kTargetHeight;
+    if (!place(req, tries, grid, rng, out.target, cell)) {
+      const int c = footprint_cells(req.sx);
+      fail = Failure{"target", 0, "cylinder", c, c, req.placement, 0};
+      return false;
+    }
+    out.has_target = true;
+  }
 
   // Agents (SPEC §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
   for (int a = 0; a < n.hiders + n.seekers; ++a) {
@@ -656,6 +679,14 @@ void SceneConfig::validate() const {
   if (elongated.min > boxes.max) {
     reject("elongated.min", elongated.min, "must be <= boxes.max (" + std::to_string(boxes.max) + ")");
   }
+  if (target_diameter_max != 0.0 || target_diameter_min != 0.0) {
+    if (!(target_diameter_min >= 0.2 && target_diameter_min <= 4.0))
+      reject("target_diameter_min", target_diameter_min, "must be in [0.2, 4] m (or both 0: no cylinder)");
+    if (!(target_diameter_max >= target_diameter_min && target_diameter_max <= 4.0))
+      reject("target_diameter_max", target_diameter_max, "must be in [target_diameter_min, 4] m");
+    if (ramps.max > 0)
+      reject("ramps.max", ramps.max, "must be 0 with a shelter cylinder (ODE cannot collide a ramp with it)");
+  }
   if (layout == Layout::kRandomWalls) {
     if (rooms.min < 1) reject("rooms.min", rooms.min, "must be >= 1");
     if (rooms.max < rooms.min) {
@@ -717,6 +748,7 @@ void SceneConfig::check_placeable() const {
   most.boxes = {boxes.max, boxes.max};
   most.ramps = {ramps.max, ramps.max};
   most.rooms = {rooms.max, rooms.max};
+  most.target_diameter_min = target_diameter_max;
   const int elongated_hi = std::min(elongated.max, boxes.max);
   Scene scene;
   for (const int elongated_count : {std::min(elongated.min, elongated_hi), elongated_hi}) {

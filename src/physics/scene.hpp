@@ -24,6 +24,7 @@ inline constexpr double kBoxSize = 0.5;             // m, cube edge and elongate
 inline constexpr double kElongatedLong = 1.65;      // m
 inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
+inline constexpr double kTargetHeight = 0.5;        // m, the shelter task's cylinder
 inline constexpr int kQuadrantSize = 15;  // quadrant: q_size = int(0.5 * grid size), the room walls' row and column
 
 // Wall layout of a scene. kVarTri: three door-less rooms (SPEC §9.2 'var_tri', the sequential-lock task).
@@ -59,6 +60,10 @@ struct SceneConfig {
   int door_size = 2;                    // cells
   bool hider_uniform_placement = true;  // quadrant: hiders anywhere (else inside the room)
   double together_radius = 0.0;         // m; > 0: agents after the first of a team spawn near it
+  // Shelter construction (SPEC §9.3): a static cylinder of this diameter range (m; 0 = no cylinder), placed
+  // in the middle 70 % of the grid before the agents, seen by lidar and vision rays, not observed.
+  double target_diameter_min = 0.0;
+  double target_diameter_max = 0.0;
   int max_tries_per_object = 10;        // rejection placement tries per object (SPEC §2.5)
   int max_regenerations = 1000;         // whole-scene rebuilds before giving up with an error
 
@@ -115,6 +120,8 @@ struct Scene {
   std::vector<Spawn> boxes;   // x-elongated first, then y-elongated, then cubes (SPEC §2.6)
   int num_elongated = 0;
   std::vector<Spawn> ramps;
+  bool has_target = false;  // shelter: the cylinder, centre and full extents (sx = sy = diameter)
+  Spawn target{};
   int regenerations = 0;  // whole-scene rebuilds this scene needed
 };
 

@@ -243,30 +243,43 @@ WorldConfig WorldConfig::lockbox() {
   return c;
 }
 
-// SPEC §9: a lone hider (team 0) with the spoofed slots of a hide-and-seek policy (one other agent, one
-// ramp at least), grab and lock as in the game, no preparation phase.
-WorldConfig WorldConfig::lock_and_return() {
-  WorldConfig c = lockbox();
-  c.scene.layout = Layout::kRandomWalls;
-  c.scene.rooms = {6, 6};
-  c.scene.prob_outside_walls = 1.0;
-  c.scene.door_size = 2;
-  c.horizon = 120;
-  c.task = Task::kLockReturn;
+namespace {
+// SPEC §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy (one
+// other agent, one ramp at least), grab and lock as in the game, no preparation phase.
+WorldConfig transfer_task(WorldConfig::Task task, int horizon) {
+  WorldConfig c = WorldConfig::lockbox();
+  c.task = task;
+  c.horizon = horizon;
   c.obs_min_agents = 2;
   c.obs_min_ramps = 1;
   return c;
 }
+}  // namespace
+
+WorldConfig WorldConfig::lock_and_return() {
+  WorldConfig c = transfer_task(Task::kLockReturn, 120);
+  c.scene.layout = Layout::kRandomWalls;
+  c.scene.rooms = {6, 6};
+  c.scene.prob_outside_walls = 1.0;
+  c.scene.door_size = 2;
+  return c;
+}
 
 WorldConfig WorldConfig::sequential_lock() {
-  WorldConfig c = lockbox();
+  WorldConfig c = transfer_task(Task::kSequentialLock, 120);
   c.scene.layout = Layout::kVarTri;
   c.scene.boxes = {4, 4};
   c.scene.ramps = {3, 3};
-  c.horizon = 120;
   c.lock_ramps = true;
-  c.task = Task::kSequentialLock;
-  c.obs_min_agents = 2;
+  return c;
+}
+
+WorldConfig WorldConfig::shelter() {
+  WorldConfig c = transfer_task(Task::kShelter, 240);
+  c.scene.boxes = {8, 8};
+  c.scene.elongated = {3, 3};
+  c.scene.target_diameter_min = 1.5;
+  c.scene.target_diameter_max = 2.0;
   return c;
 }
 
@@ -298,10 +311,13 @@ void WorldConfig::validate() const {
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
   check(task == Task::kHideAndSeek || task == Task::kLockBox || task == Task::kLockReturn ||
-            task == Task::kSequentialLock,
-        "task", int(task), "must be hide_and_seek (0), lockbox (1), lock_return (2) or sequential_lock (3)");
-  check(!is_lock_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
-        "must be >= 1 in a box-locking task (agent 0 does the task)");
+            task == Task::kSequentialLock || task == Task::kShelter,
+        "task", int(task),
+        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3) or shelter (4)");
+  check(!is_transfer_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
+        "must be >= 1 in a transfer task (agent 0 does the task)");
+  check(task != Task::kShelter || scene.target_diameter_max > 0, "target_diameter_max",
+        scene.target_diameter_max, "must be > 0 in the shelter task (its cylinder)");
   check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
         "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
@@ -466,6 +482,13 @@ void World::build_scene() {
   for (const StaticBox& w : scene_.wall_boxes) {
     dGeomID g = dCreateBox(o.static_space, 2 * w.hx, 2 * w.hy, 2 * w.hz);
     dGeomSetPosition(g, w.cx, w.cy, w.cz);
+    dGeomSetData(g, &o.wall_info);
+    o.walls.push_back(g);
+  }
+  if (scene_.has_target) {  // shelter's cylinder: static, along z, as slippery as the walls
+    const Spawn& t = scene_.target;
+    dGeomID g = dCreateCylinder(o.static_space, 0.5 * t.sx, t.sz);
+    dGeomSetPosition(g, t.x, t.y, t.z);
     dGeomSetData(g, &o.wall_info);
     o.walls.push_back(g);
   }
@@ -857,7 +880,12 @@ Occluders World::occluders() {
     arm_centres(s.pos, s.cos_yaw, s.sin_yaw, arms);
     for (const auto& arm : arms) occ_arms_.push_back({arm[0], arm[1], arm[2], kArmRadius});
   }
-  return Occluders{occ_walls_, occ_boxes_, occ_ramps_, occ_agents_, occ_arms_};
+  occ_cylinders_.clear();
+  if (scene_.has_target) {
+    const Spawn& t = scene_.target;
+    occ_cylinders_.push_back({t.x, t.y, 0.5 * t.sx, t.sz});
+  }
+  return Occluders{occ_walls_, occ_boxes_, occ_ramps_, occ_agents_, occ_arms_, occ_cylinders_};
 }
 
 void World::update_visibility() {

@@ -55,8 +55,9 @@ struct WorldConfig {
   // The reward the batch layer computes: the hide-and-seek game (SPEC §5) or one of the box-locking tasks of
   // SPEC §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
   // kLockReturn ('all-return': then back to the spawn) and kSequentialLock ('order': boxes in index order,
-  // locks of boxes after the first unlocked one refused).
-  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock };
+  // locks of boxes after the first unlocked one refused); or shelter construction (SPEC §9.3: -0.001 per
+  // ray from the arena's edges that reaches the scene's cylinder).
+  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock, kShelter };
   Task task = Task::kHideAndSeek;
   double lock_reward = 5.0;          // box-locking tasks: per newly locked box
   double unlock_penalty = 5.0;       // per newly unlocked box
@@ -67,7 +68,11 @@ struct WorldConfig {
   // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (SPEC §9 spoofed obs).
   int obs_min_agents = 0;
   int obs_min_ramps = 0;
-  bool is_lock_task() const { return task != Task::kHideAndSeek; }
+  bool is_lock_task() const {
+    return task == Task::kLockBox || task == Task::kLockReturn || task == Task::kSequentialLock;
+  }
+  // A single-agent task of SPEC §9 (agent 0 does it; every agent slot gets its reward).
+  bool is_transfer_task() const { return task != Task::kHideAndSeek; }
   // kSequentialLock: box locks are refused for boxes after the first unlocked one.
   bool lock_in_order() const { return task == Task::kSequentialLock; }
 
@@ -80,6 +85,9 @@ struct WorldConfig {
   // 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room (horizon 120).
   static WorldConfig lock_and_return();
   static WorldConfig sequential_lock();
+  // SPEC §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2] m,
+  // horizon 240.
+  static WorldConfig shelter();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;
@@ -218,6 +226,7 @@ class World {
   std::vector<OrientedBox> occ_walls_, occ_boxes_;
   std::vector<Wedge> occ_ramps_;
   std::vector<Sphere> occ_agents_, occ_arms_;
+  std::vector<Cylinder> occ_cylinders_;
 };
 
 }  // namespace hns::physics

@@ -97,6 +97,9 @@ void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordC
   ep.num_ramps = int(scene.ramps.size());
   ep.outer_walls = scene.outer_walls;
   for (const phys::StaticBox& w : scene.wall_boxes) ep.walls.push_back({w.cx, w.cy, w.cz, w.hx, w.hy, w.hz});
+  ep.cylinders.clear();
+  if (scene.has_target)
+    ep.cylinders.push_back({scene.target.x, scene.target.y, 0.5 * scene.target.sx, scene.target.sz});
   for (const phys::Spawn& b : scene.boxes) ep.box_sizes.push_back({b.sx, b.sy, b.sz});
   std::copy(std::begin(game.restrict_rect), std::end(game.restrict_rect), ep.restrict_rect.begin());
   ep.resize(game.horizon + 1);

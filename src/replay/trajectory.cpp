@@ -142,6 +142,7 @@ std::string episode_chunk(const TrajectoryEpisode& ep) {
   h["num_ramps"] = ep.num_ramps;
   h["outer_walls"] = ep.outer_walls;
   h["walls"] = ep.walls;
+  h["cylinders"] = ep.cylinders;
   h["box_sizes"] = ep.box_sizes;
   h["restrict_rect"] = ep.restrict_rect;
   h["hider_return"] = ep.hider_return;
@@ -180,6 +181,7 @@ class Fields {
   [[noreturn]] void fail(const std::string& key, const std::string& what) const {
     throw TrajectoryError(where_ + ": field \"" + key + "\": " + what);
   }
+  bool has(const std::string& key) const { return j_.contains(key); }
   const json& at(const std::string& key) const {
     auto it = j_.find(key);
     if (it == j_.end()) fail(key, "missing");
@@ -357,6 +359,11 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
   ep.num_ramps = int(f.integer("num_ramps", 0, kTrajectoryMaxObjects - ep.num_boxes));
   ep.outer_walls = f.boolean("outer_walls");
   ep.walls = f.rows<6>("walls", -1);
+  if (f.has("cylinders")) ep.cylinders = f.rows<4>("cylinders", -1);  // absent before the shelter task
+  for (size_t i = 0; i < ep.cylinders.size(); ++i) {
+    if (ep.cylinders[i][2] <= 0 || ep.cylinders[i][3] <= 0)
+      f.fail("cylinders", "entry " + std::to_string(i) + ": radius or height <= 0");
+  }
   ep.box_sizes = f.rows<3>("box_sizes", ep.num_boxes);
   ep.restrict_rect = f.numbers<4>("restrict_rect");
   ep.hider_return = f.number("hider_return", -1e12, 1e12);

@@ -48,8 +48,8 @@ enum LockState : uint8_t { kUnlocked = 0, kLockedByHiders = 1, kLockedBySeekers 
 // One recorded episode: the scene (header) and per-frame blocks.
 struct TrajectoryEpisode {
   // Header.
-  std::string scene;   // preset: quadrant, full, empty
-  std::string layout;  // wall layout: quadrant, randomwalls, empty
+  std::string scene;   // preset (physics::kSceneNames)
+  std::string layout;  // wall layout: quadrant, randomwalls, empty, var_tri
   uint64_t seed = 0;   // the run's seed; with env and episode it names the scene's random stream
   int env = 0;
   int episode = 0;
@@ -63,6 +63,8 @@ struct TrajectoryEpisode {
   int num_ramps = 0;
   bool outer_walls = true;
   std::vector<std::array<double, 6>> walls;         // static boxes: centre x, y, z, half extents x, y, z (m)
+  std::vector<std::array<double, 4>>
+      cylinders;  // static cylinders on the floor: axis x, y, radius, height (m)
   std::vector<std::array<double, 3>> box_sizes;     // full extents x, y, z (m), one per box
   std::array<double, 4> restrict_rect{0, 0, 0, 0};  // out-of-bounds rectangle x_min, y_min, x_max, y_max (m)
   double hider_return = 0;                          // summed mean hider reward over the episode

@@ -20,8 +20,10 @@ namespace {
 // shapes: parked below the floor, or a giant shape over the whole arena that any ray reading it would hit.
 struct RandomShapes {
   std::vector<float> bcx, bcy, bcz, bhx, bhy, bhz, bc, bs, wcx, wcy, wcz, wc, ws, scx, scy, scz, sr;
+  std::vector<float> ccx, ccy, cr, ch;  // cylinders: live ones only (the batch has one slot, used or not)
   int nb, nw, ns, live_b, live_w, live_s;
-  RandomShapes(physics::Rng& rng, int boxes, int wedges, int spheres, int pad = 3, bool giant_padding = false)
+  RandomShapes(physics::Rng& rng, int boxes, int wedges, int spheres, int pad = 3, bool giant_padding = false,
+               int cylinders = 0)
       : nb(boxes + pad), nw(wedges + pad), ns(spheres + pad), live_b(boxes), live_w(wedges), live_s(spheres) {
     const float pz = giant_padding ? 0.0f : kParkedZ, ph = giant_padding ? 100.0f : 0.01f;
     for (auto* v : {&bcx, &bcy}) v->assign(nb, giant_padding ? 3.0f : 0.0f);
@@ -49,6 +51,9 @@ struct RandomShapes {
     }
     for (int i = 0; i < spheres; ++i)
       scx[i] = u(0, 6), scy[i] = u(0, 6), scz[i] = u(0.15, 0.7), sr[i] = 0.15f;
+    for (int i = 0; i < cylinders; ++i) {
+      ccx.push_back(u(0, 6)), ccy.push_back(u(0, 6)), cr.push_back(u(0.2, 1.0)), ch.push_back(u(0.2, 1.0));
+    }
   }
   ShapesView view() const {
     ShapesView v;
@@ -59,6 +64,8 @@ struct RandomShapes {
     v.wedge_c = wc.data(), v.wedge_s = ws.data(), v.num_wedges = nw, v.live_wedges = live_w;
     v.sphere_cx = scx.data(), v.sphere_cy = scy.data(), v.sphere_cz = scz.data(), v.sphere_r = sr.data();
     v.num_spheres = ns, v.live_spheres = live_s;
+    v.cyl_cx = ccx.data(), v.cyl_cy = ccy.data(), v.cyl_r = cr.data(), v.cyl_h = ch.data();
+    v.num_cylinders = v.live_cylinders = int(ccx.size());
     return v;
   }
 };
@@ -113,7 +120,7 @@ TEST(RayKernels, VectorEqualsScalarForEveryFanLength) {
   const int max_count = 3 * ray_simd_width() + 1;
   int hits = 0, rays = 0;
   for (int scene = 0; scene < 12; ++scene) {
-    const RandomShapes shapes(rng, scene, scene % 4, (scene * 5) % 9, scene % 3);
+    const RandomShapes shapes(rng, scene, scene % 4, (scene * 5) % 9, scene % 3, false, scene % 3);
     const ShapesView v = shapes.view();
     for (int count = 0; count <= max_count; ++count) {
       for (int rep = 0; rep < 8; ++rep) {
@@ -256,9 +263,9 @@ TEST(RayKernels, SphereBodiesShareTheirIdAndTheEarlyOutChangesNothing) {
 // except for near-ties where float rounding may pick the other of two shapes.
 TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
   physics::Rng rng(4, 0, 0);
-  int compared = 0, disagreed = 0, hits = 0;
+  int compared = 0, disagreed = 0, hits = 0, cylinder_hits = 0;
   for (int scene = 0; scene < 50; ++scene) {
-    const RandomShapes s(rng, 12, 2, 5);
+    const RandomShapes s(rng, 12, 2, 5, 3, false, 2);
     const ShapesView v = s.view();
     std::vector<physics::OrientedBox> boxes;
     std::vector<physics::Wedge> wedges;
@@ -267,7 +274,9 @@ TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
       boxes.push_back({s.bcx[i], s.bcy[i], s.bcz[i], s.bhx[i], s.bhy[i], s.bhz[i], s.bc[i], s.bs[i]});
     for (int i = 0; i < 2; ++i) wedges.push_back({s.wcx[i], s.wcy[i], s.wcz[i], s.wc[i], s.ws[i]});
     for (int i = 0; i < 5; ++i) spheres.push_back({s.scx[i], s.scy[i], s.scz[i], s.sr[i]});
-    const physics::Occluders occ{{}, boxes, wedges, spheres, {}};
+    std::vector<physics::Cylinder> cylinders;
+    for (int i = 0; i < 2; ++i) cylinders.push_back({s.ccx[i], s.ccy[i], s.cr[i], s.ch[i]});
+    const physics::Occluders occ{{}, boxes, wedges, spheres, {}, cylinders};
     for (int k = 0; k < 10; ++k) {
       const int skip_sphere = rng.uniform_int(-1, 5);
       const RandomFan f(rng, 20, skip_sphere >= 0 ? v.sphere_id(skip_sphere) : -1);
@@ -283,7 +292,9 @@ TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
         if (ref.kind == physics::HitKind::kBox) ref_id = ref.index;
         if (ref.kind == physics::HitKind::kRamp) ref_id = v.wedge_id(ref.index);
         if (ref.kind == physics::HitKind::kAgent) ref_id = v.sphere_id(ref.index);
+        if (ref.kind == physics::HitKind::kCylinder) ref_id = v.cylinder_id(ref.index);
         ++compared;
+        cylinder_hits += ref.kind == physics::HitKind::kCylinder;
         if (a.id[i] != ref_id) {
           ++disagreed;
           continue;
@@ -296,6 +307,7 @@ TEST(RayKernels, AgreesWithDoublePrecisionGeometry) {
     }
   }
   EXPECT_GT(hits, compared / 5);
+  EXPECT_GT(cylinder_hits, compared / 50) << "the rays must hit the cylinders too";
   EXPECT_LE(disagreed, compared / 500) << disagreed << " of " << compared << " rays hit another shape";
 }
 

@@ -1,12 +1,15 @@
-// The box-locking transfer tasks of SPEC §9.2 on staged scenes: lock-and-return's lock, return and success
-// reward; sequential-lock's order (a lock out of order is refused) and its target; the spoofed observation
+// The transfer tasks of SPEC §9 on staged scenes: lock-and-return's lock, return and success reward;
+// sequential-lock's order (a lock out of order is refused) and its target; shelter's rays, against a hand
+// count and the double-precision reference, and its cylinder in lidar and vision; the spoofed observation
 // slots that let a hide-and-seek policy act in them.
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "batch/batch_sim.hpp"
+#include "physics/geometry.hpp"
 #include "physics/presets.hpp"
 
 namespace hns::batch {
@@ -153,12 +156,96 @@ TEST(SequentialLock, UnlockingAnEarlierBoxSendsTheAgentBackAndCosts) {
   EXPECT_NEAR(s.reward[0], -5.0 - 0.5 * s.task_dist[0], 0.02);
 }
 
+// Shelter (SPEC §9.3): a cylinder of diameter 1.6 m in the middle of the arena.
+Scene shelter_scene(Spawn agent, std::vector<Spawn> boxes, std::vector<physics::StaticBox> walls = {}) {
+  Scene s = lone_agent_scene(agent, std::move(boxes));
+  s.wall_boxes = std::move(walls);
+  s.has_target = true;
+  s.target = Spawn{3.0, 3.0, 0.5 * physics::kTargetHeight, 1.6, 1.6, physics::kTargetHeight};
+  return s;
+}
+
+// The rays the double-precision reference sees reach the cylinder: the same 100 start points.
+int reference_rays_reaching(BatchSim& sim) {
+  physics::World& w = sim.mutable_world(0);
+  const physics::Occluders occ = w.occluders();
+  int reaching = 0;
+  for (int side = 0; side < 4; ++side) {
+    for (int k = 0; k < 25; ++k) {
+      const double u = 0.202 + (5.798 - 0.202) * k / 24.0;
+      const double o[3] = {side == 0 || side == 2 ? u
+                           : side == 1            ? 5.798
+                                                  : 0.202,
+                           side == 1 || side == 3 ? u
+                           : side == 0            ? 0.202
+                                                  : 5.798,
+                           0.0};
+      double d[3] = {3.0 - o[0], 3.0 - o[1], 0.25};
+      const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+      for (double& x : d) x /= len;
+      reaching += physics::cast_ray(occ, o, d, len, -1).kind == physics::HitKind::kCylinder;
+    }
+  }
+  return reaching;
+}
+
+TEST(Shelter, RewardCountsTheRaysThatReachTheCylinder) {
+  BatchSim sim(task_config("shelter"));
+  const std::vector<AgentAction> idle(sim.layout().max_agents);
+  // Nothing in the way but the agent, far out in a corner: all 100 rays arrive.
+  sim.load_scene(0, shelter_scene(agent_at(5.75, 3.1), {}));
+  sim.step(idle);
+  EXPECT_EQ(sim.shelter_rays_reaching(0), reference_rays_reaching(sim));
+  EXPECT_GE(sim.shelter_rays_reaching(0), 98);
+  EXPECT_NEAR(sim.state().reward[0], -0.001 * sim.shelter_rays_reaching(0), 1e-6);
+
+  // A 0.5 m wall along x = 1.5 blocks the 25 rays of the left side and the 6 of the bottom and top sides
+  // that start left of it (x = 0.202 ... 1.368): 63 arrive. The agent stands behind the wall.
+  sim.load_scene(
+      0, shelter_scene(agent_at(0.8, 3.0), {}, {physics::StaticBox{1.5, 3.0, 0.25, 0.05, 2.8, 0.25}}));
+  sim.step(idle);
+  EXPECT_EQ(sim.shelter_rays_reaching(0), 63);
+  EXPECT_NEAR(sim.state().reward[0], -0.063, 1e-6);
+}
+
+TEST(Shelter, AWallOfBoxesBlocksWhatTheReferenceSays) {
+  BatchSim sim(task_config("shelter"));
+  const std::vector<AgentAction> idle(sim.layout().max_agents);
+  // Three y-elongated boxes end to end along x = 1.5 (y from 0.35 to 5.3): gaps at both ends.
+  auto slab = [](double y) { return Spawn{1.5, y, 0.25, 0.15, 1.65, 0.5}; };
+  sim.load_scene(0, shelter_scene(agent_at(0.8, 3.0), {slab(1.175), slab(2.825), slab(4.475)}));
+  sim.step(idle);
+  const int reaching = sim.shelter_rays_reaching(0);
+  EXPECT_EQ(reaching, reference_rays_reaching(sim));
+  EXPECT_GE(reaching, 63);  // the wall's 37 at most
+  EXPECT_LT(reaching, 70);  // the gaps let a few through
+  EXPECT_NEAR(sim.state().reward[0], -0.001 * reaching, 1e-6);
+}
+
+TEST(Shelter, LidarSeesTheCylinderAndItHidesABox) {
+  BatchSim sim(task_config("shelter"));
+  // Agent at (3, 5.2) facing -y, the cylinder's near face at y = 3.8, a cube behind it at y = 1.
+  sim.load_scene(0, shelter_scene(agent_at(3.0, 5.2), {cube_at(3.0, 1.0)}));
+  const BatchState& s = sim.state();
+  // Lidar ray k points at 12k degrees from +x: ray 22 (264°) is 6° off -y.
+  const double expected = (5.2 - 3.0) / std::cos(6.0 * 3.14159265358979 / 180.0);
+  const double hit = s.lidar[22];
+  EXPECT_GT(hit, 1.3);
+  EXPECT_LT(hit, expected - 0.7);  // meets the cylinder's side 0.8 m out from its axis, not the box
+  EXPECT_EQ(s.vis_boxes[0], 0) << "the cube behind the cylinder is seen";
+  // Without the cylinder it is seen.
+  Scene open = shelter_scene(agent_at(3.0, 5.2), {cube_at(3.0, 1.0)});
+  open.has_target = false;
+  sim.load_scene(0, open);
+  EXPECT_EQ(s.vis_boxes[0], 1);
+}
+
 TEST(TransferTasks, PresetsValidateAndPlace) {
-  for (const char* name : {"lock-and-return", "sequential-lock"}) {
+  for (const char* name : {"lock-and-return", "sequential-lock", "shelter"}) {
     physics::WorldConfig w = physics::world_preset(name);
     EXPECT_NO_THROW(w.validate()) << name;
     EXPECT_NO_THROW(w.scene.check_placeable()) << name;
-    EXPECT_EQ(w.horizon, 120) << name;
+    EXPECT_EQ(w.horizon, std::string(name) == "shelter" ? 240 : 120) << name;
     EXPECT_EQ(w.prep_steps(), 0) << name;
   }
   BatchConfig c = task_config("sequential-lock");
@@ -171,6 +258,24 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     EXPECT_EQ(scene.boxes.size(), 4u);
     EXPECT_EQ(scene.ramps.size(), 3u);
     EXPECT_EQ(scene.num_hiders + scene.num_seekers, 1);
+  }
+  c = task_config("shelter");
+  c.num_envs = 8;
+  BatchSim shelter(c);
+  shelter.reset();
+  for (int e = 0; e < 8; ++e) {
+    const Scene& scene = shelter.world(e).scene();
+    ASSERT_TRUE(scene.has_target);
+    EXPECT_GE(scene.target.sx, 1.5);
+    EXPECT_LE(scene.target.sx, 2.0);
+    EXPECT_EQ(scene.boxes.size(), 8u);
+    EXPECT_EQ(scene.num_elongated, 3);
+    // The middle 70 % of the arena: cells 4 .. 24.
+    EXPECT_GE(scene.target.x - 0.5 * scene.target.sx, 4 * physics::kCellSize - 1e-9);
+    EXPECT_LE(scene.target.x + 0.5 * scene.target.sx, 25 * physics::kCellSize + 1e-9);
+    // The boxes spawn anywhere and already block some rays, never all.
+    EXPECT_GT(shelter.shelter_rays_reaching(e), 20);
+    EXPECT_LE(shelter.shelter_rays_reaching(e), 100);
   }
 }
 

@@ -68,7 +68,7 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("lr", "-1", "lr");
   rejects("lr", "fast", "must be a finite number");
   rejects("envs", "2.5", "must be an integer");
-  rejects("scene", "moon", "quadrant, full, empty, lockbox, lock-and-return, sequential-lock");
+  rejects("scene", "moon", "quadrant, full, empty, lockbox, lock-and-return, sequential-lock, shelter");
   rejects("model", "huge", "small, paper");
   rejects("bptt", "7", "must divide the rollout length");
   rejects("grad_groups", "0", "grad_groups");

@@ -297,6 +297,26 @@ TEST(TrajectoryErrors, Values) {
   expect_error(poke("reward", 0, std::numeric_limits<float>::infinity()), {"block \"reward\"", "finite"});
 }
 
+// The shelter task's cylinder travels in the episode header; files without the field (written before it
+// existed) read as having none; a cylinder without size is refused.
+TEST(Trajectory, CylindersRoundTripAreOptionalAndChecked) {
+  TrajectoryFile file;
+  file.episodes.push_back(make_episode(1, 0, 2, 0, 5, 11));
+  file.episodes[0].scene = "shelter";
+  file.episodes[0].cylinders = {{3.0, 2.9, 0.8, 0.5}};
+  const std::string bytes = encode_trajectory(file);
+  EXPECT_EQ(decode_trajectory(bytes), file);
+  file.episodes[0].cylinders.clear();
+  const std::string none = encode_trajectory(file);
+  std::vector<RawChunk> chunks = split(none);
+  ASSERT_TRUE(chunks.at(1).header.contains("cylinders"));
+  chunks.at(1).header.erase("cylinders");
+  const std::string dropped = join(chunks);
+  EXPECT_TRUE(decode_trajectory(dropped).episodes[0].cylinders.empty());
+  file.episodes[0].cylinders = {{3.0, 2.9, 0.0, 0.5}};
+  expect_error(encode_trajectory(file), {"field \"cylinders\"", "radius or height"});
+}
+
 // Version 2 episodes carry a checksum of their payload: any flipped payload byte is refused, naming it.
 TEST(TrajectoryErrors, PayloadChecksum) {
   const std::string good = encode_trajectory(make_file());
