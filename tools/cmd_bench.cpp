@@ -41,11 +41,7 @@ struct BenchOptions {
 
 // Uniformly random bins for every action head.
 void random_actions(phys::Rng& rng, std::vector<phys::AgentAction>& actions) {
-  for (phys::AgentAction& a : actions) {
-    a = phys::AgentAction{uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 11)),
-                          uint8_t(rng.uniform_int(0, 11)), uint8_t(rng.uniform_int(0, 2)),
-                          uint8_t(rng.uniform_int(0, 2))};
-  }
+  for (phys::AgentAction& a : actions) a = phys::random_action(rng);
 }
 
 constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep profiled runs short

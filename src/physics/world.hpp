@@ -107,6 +107,18 @@ struct AgentAction {
 };
 
 inline constexpr int kMoveBins = 11;
+
+// A uniformly random action: every movement bin, grab and lock bit equally likely (drawn in that order).
+template <class Rng>
+AgentAction random_action(Rng& rng) {
+  AgentAction a;
+  a.move_x = uint8_t(rng.uniform_int(0, kMoveBins));
+  a.move_y = uint8_t(rng.uniform_int(0, kMoveBins));
+  a.turn = uint8_t(rng.uniform_int(0, kMoveBins));
+  a.grab = uint8_t(rng.uniform_int(0, 2));
+  a.lock = uint8_t(rng.uniform_int(0, 2));
+  return a;
+}
 inline constexpr double kMaxControl = 0.9;  // bin 0 = -0.9, bin 10 = +0.9
 inline constexpr double kGear = 100.0;      // N (or N·m) per unit of control
 // Control value of a movement bin: linspace(-0.9, 0.9, 11).

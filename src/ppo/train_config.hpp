@@ -48,7 +48,8 @@ struct TrainConfig {
   double gamma = 0.998;
   double lambda = 0.95;
   // Start (Trainer::initialize_from, `hns train --init-from`): a checkpoint of the same model whose scene has
-  // the same observation slots, "" = from the seed. Its policy weights always; the rest as the flags say.
+  // the same entity types (other agents, boxes, ramps; any counts), "" = from the seed. Its policy weights
+  // always; the rest as the flags say.
   std::string init_from;
   int init_value = 1;        // 1: the value net's weights too (0: the value net starts from the seed)
   int init_normalizers = 1;  // 1: the observation normaliser (and, with init_value, the return normaliser)

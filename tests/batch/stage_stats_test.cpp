@@ -307,13 +307,7 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
   physics::Rng rng(7, 0, 0);
   double episodes = 0, sealed = 0, locked = 0, surf = 0, approach = 0;
   for (int t = 0; t < 3 * 80; ++t) {
-    for (AgentAction& a : acts) {
-      a.move_x = uint8_t(rng.uniform_int(0, physics::kMoveBins));
-      a.move_y = uint8_t(rng.uniform_int(0, physics::kMoveBins));
-      a.turn = uint8_t(rng.uniform_int(0, physics::kMoveBins));
-      a.grab = uint8_t(rng.uniform_int(0, 2));
-      a.lock = uint8_t(rng.uniform_int(0, 2));
-    }
+    for (AgentAction& a : acts) a = physics::random_action(rng);
     sim.step(acts);
     for (const EpisodeStats& st : sim.finished()) {
       episodes += 1;

@@ -298,6 +298,29 @@ else
   echo "FAIL: an interrupted and resumed run is not one run of $n iterations"; cat "$tmp/log"
 fi
 
+# hns eval: a tiny suite (from scratch and from a lockbox checkpoint), its three outputs, --resume adding a
+# seed and keeping the finished runs, and the refusals (before any file is written).
+if "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 1 --iterations 2 --envs 2 --random-episodes 4 \
+     --pretrained "lb=$tmp/init-good.bin" --threads 1 >"$tmp/log" 2>&1 &&
+   [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 2 ] &&
+   grep -q "| lockbox |" "$tmp/eval/eval.md" && grep -q "<svg" "$tmp/eval/eval.html" &&
+   "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 2 --iterations 2 --envs 2 --random-episodes 4 \
+     --pretrained "lb=$tmp/init-good.bin" --threads 1 --resume >"$tmp/log2" 2>&1 &&
+   [ "$(grep -c "iteration 2/2" "$tmp/log2")" -eq 2 ] && [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 4 ] &&
+   grep -q '"seed": 2' "$tmp/eval/eval.json" && ! grep -q "random policy return" "$tmp/log2"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: hns eval"; cat "$tmp/log" "$tmp/log2" 2>/dev/null
+fi
+expect_fail 2 "holds an evaluation" eval --out "$tmp/eval" --tasks lockbox --iterations 2
+expect_fail 2 "settings .* differ" eval --out "$tmp/eval" --tasks lockbox --iterations 3 --envs 2 --resume
+expect_fail 2 "not a transfer task" eval --out "$tmp/eval-bad" --tasks quadrant
+expect_fail 2 "tasks: scene = 'moon'" eval --out "$tmp/eval-bad" --tasks moon
+expect_fail 2 "cannot start shelter: .*entity types" eval --out "$tmp/eval-bad" --tasks shelter \
+  --pretrained "lb=$tmp/init-good.bin"
+expect_fail 2 "seed is set by hns eval" eval --out "$tmp/eval-bad" --set seed=2
+[ -e "$tmp/eval-bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused hns eval created its folder"; }
 # The shipped recipes (configs/) are valid configs that train: each runs one iteration shrunk to 4 envs.
 configs="$(cd "$(dirname "$0")/../../configs" && pwd)"
 for cfg in "$configs"/*.json; do

@@ -1,0 +1,513 @@
+// `hns eval`: the paper's transfer protocol (docs/transfer.md). For every task of the suite, every condition
+// (from scratch, and from each --pretrained checkpoint) and every seed: one training run of a fixed budget.
+// Per task also the return of a uniformly random policy. Results go to DIR/eval.json (every curve, written
+// after each run: a stopped evaluation continues with --resume), DIR/eval.md (one table) and DIR/eval.html
+// (normalised-performance curves, mean and 90 % interval over seeds).
+//
+//   hns eval --out DIR [--tasks T1,T2,...] [--seeds N] [--iterations K] [--envs E] [--model M] [--threads T]
+//            [--pretrained LABEL=CHECKPOINT ...] [--set KEY=VALUE ...] [--random-episodes N]
+//            [--resume | --overwrite]
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cli.hpp"
+#include "physics/presets.hpp"
+#include "ppo/eval.hpp"
+#include "ppo/trainer.hpp"
+
+namespace hns::tools {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr int kFinalIterations = 5;  // the final return: mean over a run's last iterations
+constexpr int kSmooth = 5;           // curves: trailing mean over this many iterations
+
+struct EvalOptions {
+  std::string out;
+  std::string tasks = "lock-and-return,sequential-lock,shelter";
+  int seeds = 3;
+  int iterations = 40;
+  int envs = 64;
+  std::string model = "small";
+  int threads = 0;
+  std::vector<std::string> pretrained;  // LABEL=CHECKPOINT
+  std::vector<std::string> sets;
+  int random_episodes = 256;
+  bool resume = false;
+  bool overwrite = false;
+};
+
+struct Condition {
+  std::string label;       // "scratch" or the --pretrained label
+  std::string checkpoint;  // absolute path, "" for scratch
+};
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    if (!item.empty()) out.push_back(item);
+  }
+  return out;
+}
+
+// One finished run's curve.
+struct RunRecord {
+  std::string task, condition;
+  int seed = 0;
+  std::vector<double> returns;       // mean episode return per iteration
+  std::vector<int64_t> agent_steps;  // cumulative, per iteration
+  double seconds = 0;
+};
+
+json to_json(const RunRecord& r) {
+  return json{{"task", r.task},       {"condition", r.condition},     {"seed", r.seed},
+              {"returns", r.returns}, {"agent_steps", r.agent_steps}, {"seconds", r.seconds}};
+}
+
+RunRecord record_of(const json& j) {
+  RunRecord r;
+  r.task = j.at("task").get<std::string>();
+  r.condition = j.at("condition").get<std::string>();
+  r.seed = j.at("seed").get<int>();
+  r.returns = j.at("returns").get<std::vector<double>>();
+  r.agent_steps = j.at("agent_steps").get<std::vector<int64_t>>();
+  r.seconds = j.value("seconds", 0.0);
+  return r;
+}
+
+double final_return(const RunRecord& r) {
+  const int n = std::min<int>(kFinalIterations, int(r.returns.size()));
+  double s = 0;
+  for (int i = int(r.returns.size()) - n; i < int(r.returns.size()); ++i) s += r.returns[size_t(i)];
+  return n > 0 ? s / n : 0.0;
+}
+
+std::vector<double> smoothed(const std::vector<double>& v) {
+  std::vector<double> out(v.size());
+  double s = 0;
+  for (size_t i = 0; i < v.size(); ++i) {
+    s += v[i];
+    if (i >= size_t(kSmooth)) s -= v[i - kSmooth];
+    out[i] = s / double(std::min(i + 1, size_t(kSmooth)));
+  }
+  return out;
+}
+
+// Everything the table and the page show, from the records.
+struct Summary {
+  std::vector<std::string> tasks;
+  std::vector<std::string> conditions;
+  std::map<std::string, double> random;  // per task
+  std::vector<RunRecord> runs;
+
+  std::vector<const RunRecord*> of(const std::string& task, const std::string& cond) const {
+    std::vector<const RunRecord*> out;
+    for (const RunRecord& r : runs) {
+      if (r.task == task && r.condition == cond) out.push_back(&r);
+    }
+    return out;
+  }
+  ppo::MeanInterval final_of(const std::string& task, const std::string& cond) const {
+    std::vector<double> v;
+    for (const RunRecord* r : of(task, cond)) v.push_back(final_return(*r));
+    return ppo::mean_interval90(v);
+  }
+  // The best condition's mean final return (the normalisation's 1), or the random return without runs.
+  double best(const std::string& task) const {
+    double b = random.at(task);
+    bool any = false;
+    for (const std::string& c : conditions) {
+      const ppo::MeanInterval m = final_of(task, c);
+      if (m.n > 0 && (!any || m.mean > b)) b = m.mean, any = true;
+    }
+    return b;
+  }
+};
+
+std::string fmt(double v, int digits = 2) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
+std::string interval_text(const ppo::MeanInterval& m, int digits = 2) {
+  if (m.n == 0) return "";
+  if (m.n == 1) return fmt(m.mean, digits) + " (1 seed)";
+  return fmt(m.mean, digits) + " [" + fmt(m.lo, digits) + ", " + fmt(m.hi, digits) + "]";
+}
+
+std::string table_markdown(const Summary& s, const json& settings) {
+  std::ostringstream o;
+  o << "# hns eval\n\n";
+  o << "Settings: " << settings.dump() << "\n\n";
+  o << "Final return: the mean episode return of a run's last " << kFinalIterations
+    << " iterations; mean over seeds and [90 % interval] (Student t). Normalised: (return - random) / (best "
+       "- "
+       "random), best = the best condition's mean.\n\n";
+  o << "| task | random policy |";
+  for (const std::string& c : s.conditions) o << " " << c << " | " << c << " normalised |";
+  o << "\n|---|---|";
+  for (size_t i = 0; i < s.conditions.size(); ++i) o << "---|---|";
+  o << "\n";
+  for (const std::string& t : s.tasks) {
+    if (!s.random.count(t)) continue;
+    const double rnd = s.random.at(t), best = s.best(t);
+    o << "| " << t << " | " << fmt(rnd) << " |";
+    for (const std::string& c : s.conditions) {
+      const ppo::MeanInterval m = s.final_of(t, c);
+      if (m.n == 0) {
+        o << " not run | |";
+        continue;
+      }
+      o << " " << interval_text(m) << " (" << m.n << " seeds) | " << fmt(ppo::normalised(m.mean, rnd, best))
+        << " |";
+    }
+    o << "\n";
+  }
+  return o.str();
+}
+
+// One chart per task: the normalised, smoothed return against agent-steps, the mean over seeds as a line and
+// its 90 % interval as a band, per condition; dashed lines at 0 (random) and 1 (best final).
+std::string chart_svg(const Summary& s, const std::string& task) {
+  static const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
+  const double W = 520, H = 300, L = 56, R = 12, T = 28, B = 40;
+  const double rnd = s.random.at(task), best = s.best(task);
+  struct Curve {
+    std::vector<double> x, mean, lo, hi;
+  };
+  std::vector<Curve> curves;
+  double x_max = 1, y_min = -0.1, y_max = 1.1;
+  for (const std::string& c : s.conditions) {
+    const std::vector<const RunRecord*> runs = s.of(task, c);
+    Curve cv;
+    if (!runs.empty()) {
+      size_t n = runs.front()->returns.size();
+      for (const RunRecord* r : runs) n = std::min(n, r->returns.size());
+      std::vector<std::vector<double>> sm;
+      for (const RunRecord* r : runs) sm.push_back(smoothed(r->returns));
+      for (size_t i = 0; i < n; ++i) {
+        std::vector<double> v;
+        for (const auto& curve : sm) v.push_back(ppo::normalised(curve[i], rnd, best));
+        const ppo::MeanInterval m = ppo::mean_interval90(v);
+        cv.x.push_back(double(runs.front()->agent_steps[i]));
+        cv.mean.push_back(m.mean), cv.lo.push_back(m.lo), cv.hi.push_back(m.hi);
+        x_max = std::max(x_max, cv.x.back());
+        y_min = std::min(y_min, m.lo), y_max = std::max(y_max, m.hi);
+      }
+    }
+    curves.push_back(cv);
+  }
+  y_min = std::max(y_min, -3.0), y_max = std::min(y_max, 3.0);
+  auto px = [&](double x) { return L + (W - L - R) * x / x_max; };
+  auto py = [&](double y) {
+    return T + (H - T - B) * (y_max - std::clamp(y, y_min, y_max)) / (y_max - y_min);
+  };
+  std::ostringstream o;
+  o << "<svg xmlns='http://www.w3.org/2000/svg' width='" << W << "' height='" << H << "' class='chart'>";
+  o << "<text x='" << L << "' y='18' class='title'>" << task << "</text>";
+  o << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
+    << "' fill='none' stroke='#999'/>";
+  for (double level : {0.0, 1.0}) {
+    o << "<line x1='" << L << "' x2='" << W - R << "' y1='" << py(level) << "' y2='" << py(level)
+      << "' stroke='#888' stroke-dasharray='4 3'/><text x='" << L - 6 << "' y='" << py(level) + 4
+      << "' text-anchor='end'>" << fmt(level, 0) << "</text>";
+  }
+  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 8 << "' text-anchor='middle'>agent-steps ("
+    << fmt(x_max / 1e6, 2) << " M at the right edge)</text>";
+  o << "<text x='14' y='" << (T + H - B) / 2 << "' transform='rotate(-90 14 " << (T + H - B) / 2
+    << ")' text-anchor='middle'>normalised return</text>";
+  for (size_t c = 0; c < curves.size(); ++c) {
+    const Curve& cv = curves[c];
+    if (cv.x.empty()) continue;
+    const char* colour = kColours[c % 6];
+    o << "<polygon fill='" << colour << "' fill-opacity='0.18' stroke='none' points='";
+    for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.hi[i]) << " ";
+    for (size_t i = cv.x.size(); i-- > 0;) o << px(cv.x[i]) << "," << py(cv.lo[i]) << " ";
+    o << "'/><polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
+    for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.mean[i]) << " ";
+    o << "'/>";
+    o << "<text x='" << W - R - 4 << "' y='" << T + 16 + 16 * c << "' text-anchor='end' fill='" << colour
+      << "'>" << s.conditions[c] << "</text>";
+  }
+  o << "</svg>";
+  return o.str();
+}
+
+std::string html_escape(const std::string& text) {
+  std::string out;
+  for (char ch : text) {
+    if (ch == '<')
+      out += "&lt;";
+    else if (ch == '>')
+      out += "&gt;";
+    else if (ch == '&')
+      out += "&amp;";
+    else
+      out += ch;
+  }
+  return out;
+}
+
+std::string page_html(const Summary& s, const json& settings) {
+  std::ostringstream o;
+  o << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>hns eval</title><style>"
+       "body{font-family:sans-serif;margin:20px;max-width:1100px}svg.chart{margin:6px;font-size:12px}"
+       ".title{font-weight:bold;font-size:14px}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
+       "padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>";
+  o << "<h1>hns eval: transfer suite</h1><p>" << html_escape(settings.dump()) << "</p>";
+  o << "<p>Each line is the mean over seeds of a condition's return, smoothed over " << kSmooth
+    << " iterations and normalised per task: 0 is the uniformly random policy's return, 1 the best "
+       "condition's final return (the mean of its last "
+    << kFinalIterations << " iterations). The band is the 90 % interval over seeds (Student t).</p>";
+  o << "<table><tr><th>task</th><th>random</th>";
+  for (const std::string& c : s.conditions) o << "<th>" << html_escape(c) << "</th><th>normalised</th>";
+  o << "</tr>";
+  for (const std::string& t : s.tasks) {
+    if (!s.random.count(t)) continue;
+    const double rnd = s.random.at(t), best = s.best(t);
+    o << "<tr><td>" << t << "</td><td>" << fmt(rnd) << "</td>";
+    for (const std::string& c : s.conditions) {
+      const ppo::MeanInterval m = s.final_of(t, c);
+      o << "<td>" << (m.n ? interval_text(m) : "not run") << "</td><td>"
+        << (m.n ? fmt(ppo::normalised(m.mean, rnd, best)) : "") << "</td>";
+    }
+    o << "</tr>";
+  }
+  o << "</table><div>";
+  for (const std::string& t : s.tasks) {
+    if (s.random.count(t)) o << chart_svg(s, t);
+  }
+  o << "</div></body></html>\n";
+  return o.str();
+}
+
+int run_eval(const EvalOptions& opt) {
+  // Everything is checked before any work starts.
+  if (opt.out.empty())
+    throw physics::ConfigError("--out DIR is required (where eval.json, eval.md, eval.html go)");
+  if (opt.resume && opt.overwrite) throw physics::ConfigError("--resume and --overwrite: give one");
+  Summary s;
+  s.tasks = split_list(opt.tasks);
+  if (s.tasks.empty()) throw physics::ConfigError("--tasks '" + opt.tasks + "': no task given");
+  for (const std::string& t : s.tasks) {
+    physics::WorldConfig w;
+    try {
+      w = physics::world_preset(t);
+    } catch (const physics::ConfigError& e) {
+      throw physics::ConfigError(std::string("--tasks: ") + e.what());
+    }
+    if (!w.is_transfer_task())
+      throw physics::ConfigError("--tasks: '" + t +
+                                 "' is not a transfer task (lockbox, lock-and-return, "
+                                 "sequential-lock, shelter)");
+    if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
+      throw physics::ConfigError("--tasks: '" + t + "' is given twice");
+  }
+  std::vector<Condition> conditions = {{"scratch", ""}};
+  for (const std::string& p : opt.pretrained) {
+    const auto eq = p.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == p.size())
+      throw physics::ConfigError("--pretrained " + p + ": expected LABEL=CHECKPOINT");
+    Condition c{p.substr(0, eq), p.substr(eq + 1)};
+    for (char ch : c.label) {
+      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_'))
+        throw physics::ConfigError("--pretrained " + p +
+                                   ": the label may hold letters, digits, - and _ only");
+    }
+    for (const Condition& other : conditions) {
+      if (other.label == c.label)
+        throw physics::ConfigError("--pretrained: label '" + c.label + "' is used twice");
+    }
+    std::error_code ec;
+    if (!fs::is_regular_file(c.checkpoint, ec))
+      throw physics::ConfigError("--pretrained " + p + ": no such checkpoint file");
+    c.checkpoint = fs::absolute(c.checkpoint).lexically_normal().string();
+    const ppo::TrainConfig theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
+    if (theirs.model != opt.model) {
+      throw physics::ConfigError("--pretrained " + p + ": the checkpoint's model is " + theirs.model +
+                                 ", this evaluation's is " + opt.model + " (--model)");
+    }
+    conditions.push_back(c);
+  }
+  for (const Condition& c : conditions) s.conditions.push_back(c.label);
+
+  ppo::TrainConfig base;
+  base.model = opt.model;
+  base.envs = opt.envs;
+  base.iterations = opt.iterations;
+  base.threads = opt.threads;
+  // Fine-tuning carries the policy's weights and the observation normaliser; the value net learns the new
+  // reward from the seed's weights (--set init_value=1 carries it too).
+  base.init_value = 0;
+  for (const std::string& kv : opt.sets) {
+    const auto eq = kv.find('=');
+    if (eq == std::string::npos) throw physics::ConfigError("--set " + kv + ": expected KEY=VALUE");
+    const std::string key = kv.substr(0, eq);
+    if (key == "scene" || key == "seed" || key == "init_from" || key == "iterations" || key == "envs" ||
+        key == "model" || key == "threads")
+      throw physics::ConfigError("--set " + kv + ": " + key + " is set by hns eval itself (see --help)");
+    base.set(key, kv.substr(eq + 1));
+  }
+  if (opt.seeds < 1 || opt.seeds > 100) {
+    throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
+  }
+  for (const std::string& t : s.tasks) {
+    ppo::TrainConfig c = base;
+    c.scene = t;
+    c.validate();
+    check_memory("hns eval --tasks " + t + " --envs " + std::to_string(c.envs), c.estimated_bytes());
+    // Each checkpoint must fit each task (model, entity types): tried on a one-env trainer now, not after
+    // hours of other runs.
+    c.envs = 1;
+    for (const Condition& cond : conditions) {
+      if (cond.checkpoint.empty()) continue;
+      ppo::Trainer probe(c);
+      try {
+        probe.initialize_from(cond.checkpoint);
+      } catch (const std::runtime_error& e) {
+        throw physics::ConfigError("--pretrained " + cond.label + "=" + cond.checkpoint + " cannot start " +
+                                   t + ": " + e.what());
+      }
+    }
+  }
+  json settings = {{"model", opt.model},
+                   {"envs", opt.envs},
+                   {"iterations", opt.iterations},
+                   {"random_episodes", opt.random_episodes},
+                   {"sets", opt.sets}};
+
+  const fs::path dir(opt.out);
+  const fs::path eval_json = dir / "eval.json";
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
+  json saved;
+  if (fs::exists(eval_json, ec)) {
+    if (!opt.resume && !opt.overwrite) {
+      throw physics::ConfigError(
+          "--out " + opt.out +
+          " holds an evaluation (eval.json): --resume continues it, --overwrite starts over");
+    }
+    if (opt.resume) {
+      try {
+        std::ifstream in(eval_json);
+        saved = json::parse(in);
+        if (saved.at("settings") != settings) {
+          throw physics::ConfigError("--resume " + opt.out + ": its settings " + saved.at("settings").dump() +
+                                     " differ from these " + settings.dump());
+        }
+        for (auto& [task, value] : saved.at("random").items()) s.random[task] = value.get<double>();
+        for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
+      } catch (const json::exception& e) {
+        throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
+      }
+    }
+  } else if (opt.resume) {
+    throw physics::ConfigError("--resume " + opt.out + ": no eval.json there");
+  }
+  fs::create_directories(dir, ec);
+  if (ec) throw physics::ConfigError("--out " + opt.out + ": cannot create the folder: " + ec.message());
+
+  auto write_all = [&]() {
+    json j = {
+        {"kind", "hns-eval"}, {"settings", settings}, {"random", json::object()}, {"runs", json::array()}};
+    for (const auto& [task, value] : s.random) j["random"][task] = value;
+    for (const RunRecord& r : s.runs) j["runs"].push_back(to_json(r));
+    write_atomically(eval_json.string(), j.dump(1) + "\n");
+    write_atomically((dir / "eval.md").string(), table_markdown(s, settings));
+    write_atomically((dir / "eval.html").string(), page_html(s, settings));
+  };
+
+  std::printf(
+      "hns eval: %zu tasks x %zu conditions x %d seeds, %d iterations of %d envs each (model %s, %s)\n",
+      s.tasks.size(), s.conditions.size(), opt.seeds, opt.iterations, opt.envs, opt.model.c_str(),
+      threads_text(opt.threads).c_str());
+  for (const std::string& t : s.tasks) {
+    if (s.random.count(t)) continue;
+    ppo::TrainConfig c = base;
+    c.scene = t;
+    s.random[t] = ppo::random_policy_return(c, opt.random_episodes);
+    std::printf("  %s: random policy return %.3f (%d episodes)\n", t.c_str(), s.random[t],
+                opt.random_episodes);
+    std::fflush(stdout);
+    write_all();
+  }
+  for (const std::string& t : s.tasks) {
+    for (const Condition& cond : conditions) {
+      for (int seed = 1; seed <= opt.seeds; ++seed) {
+        const bool done = std::any_of(s.runs.begin(), s.runs.end(), [&](const RunRecord& r) {
+          return r.task == t && r.condition == cond.label && r.seed == seed;
+        });
+        if (done) continue;
+        ppo::TrainConfig c = base;
+        c.scene = t;
+        c.seed = uint64_t(seed);
+        c.init_from = cond.checkpoint;
+        ppo::Trainer trainer(c);
+        if (!cond.checkpoint.empty()) trainer.initialize_from(cond.checkpoint);
+        RunRecord rec{t, cond.label, seed, {}, {}, 0};
+        for (int i = 1; i <= c.iterations; ++i) {
+          const ppo::IterationMetrics m = trainer.iterate();
+          rec.returns.push_back(m.hider_reward);
+          rec.agent_steps.push_back(m.agent_steps);
+          rec.seconds += m.seconds;
+          if (i % 10 == 0 || i == c.iterations) {
+            std::printf("  %s / %s / seed %d: iteration %d/%d, return %.3f, %.0f agent-steps/s\n", t.c_str(),
+                        cond.label.c_str(), seed, i, c.iterations, m.hider_reward, m.steps_per_s);
+            std::fflush(stdout);
+          }
+        }
+        s.runs.push_back(rec);
+        write_all();
+      }
+    }
+  }
+  write_all();
+  std::printf("\n%s\nhns eval: wrote %s, %s and %s\n", table_markdown(s, settings).c_str(), eval_json.c_str(),
+              (dir / "eval.md").c_str(), (dir / "eval.html").c_str());
+  return 0;
+}
+
+}  // namespace
+
+void add_eval_command(CLI::App& app, std::vector<Command>& commands) {
+  auto opt = std::make_shared<EvalOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "eval",
+      "Transfer suite: train each task from scratch and from checkpoints over seeds (docs/transfer.md)");
+  cmd->add_option("--out", opt->out, "Folder for eval.json, eval.md and eval.html")->required();
+  cmd->add_option("--tasks", opt->tasks, "Comma-separated transfer scenes")->capture_default_str();
+  cmd->add_option("--seeds", opt->seeds, "Seeds per task and condition (1 .. N)")->capture_default_str();
+  cmd->add_option("--iterations", opt->iterations, "Training iterations per run (the fixed budget)")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  cmd->add_option("--envs", opt->envs, "Envs per run")->check(CLI::Range(1, 1 << 20))->capture_default_str();
+  cmd->add_option("--model", opt->model, "small | paper (a --pretrained checkpoint's model)")
+      ->capture_default_str();
+  cmd->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
+  cmd->add_option("--pretrained", opt->pretrained,
+                  "LABEL=CHECKPOINT: a condition starting from that checkpoint's policy (repeatable)");
+  cmd->add_option("--set", opt->sets, "A training config key for every run, KEY=VALUE (repeatable)");
+  cmd->add_option("--random-episodes", opt->random_episodes, "Episodes of the random policy per task")
+      ->check(CLI::Range(1, 1000000))
+      ->capture_default_str();
+  cmd->add_flag("--resume", opt->resume,
+                "Continue the evaluation in --out: runs already in eval.json are kept");
+  cmd->add_flag("--overwrite", opt->overwrite, "Start over when --out holds an evaluation");
+  commands.push_back({cmd, [opt] { return run_eval(*opt); }});
+}
+
+}  // namespace hns::tools
