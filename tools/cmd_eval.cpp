@@ -349,9 +349,11 @@ int run_eval(const EvalOptions& opt) {
   base.envs = opt.envs;
   base.iterations = opt.iterations;
   base.threads = opt.threads;
-  // Fine-tuning carries the policy's weights and the observation normaliser; the value net learns the new
-  // reward from the seed's weights (--set init_value=1 carries it too).
+  // Fine-tuning carries the policy's weights and the observation normaliser, and starts each network's head
+  // (final layer norm and output layer) from the seed, as the paper does; the value net learns the new reward
+  // from the seed's weights (--set init_value=1 carries it, --set init_heads=1 the heads).
   base.init_value = 0;
+  base.init_heads = 0;
   for (const std::string& kv : opt.sets) {
     const auto eq = kv.find('=');
     if (eq == std::string::npos) throw physics::ConfigError("--set " + kv + ": expected KEY=VALUE");

@@ -974,8 +974,10 @@ void BatchSim::observe_env(int env) {
   const uint8_t* vis_agents = s.vis_agents.data() + ea * A;
   const uint8_t* vis_boxes = s.vis_boxes.data() + ea * B;
   const uint8_t* vis_ramps = s.vis_ramps.data() + ea * R;
+  const int hider_obs = config_.world.obs_hider;
   for (int a = 0; a < n; ++a) {
     agent_features(a, obs_self + a * Layout::kSelfFeatures);
+    if (hider_obs >= 0) obs_self[a * Layout::kSelfFeatures + 9] = float(hider_obs);
     for (int k = 0; k < n - 1; ++k) {
       const int j = ((a - 1 - k) % n + n) % n;
       agent_features(j, obs_agents + (size_t(a) * O + k) * Layout::kAgentFeatures);

@@ -280,6 +280,7 @@ WorldConfig WorldConfig::shelter() {
   c.scene.elongated = {3, 3};
   c.scene.target_diameter_min = 1.5;
   c.scene.target_diameter_max = 2.0;
+  c.obs_hider = 0;  // SPEC §9.3's constant observation
   return c;
 }
 
@@ -322,6 +323,7 @@ void WorldConfig::validate() const {
         "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
   check(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps, "must be in [0, 16]");
+  check(obs_hider >= -1 && obs_hider <= 1, "obs_hider", obs_hider, "must be -1 (the agent's team), 0 or 1");
   check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
   check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty,
         "must be in [0, 1000]");

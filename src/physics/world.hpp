@@ -68,6 +68,9 @@ struct WorldConfig {
   // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (SPEC §9 spoofed obs).
   int obs_min_agents = 0;
   int obs_min_ramps = 0;
+  // The "hider" self feature: -1 = the agent's team (1 for hiders); 0 or 1 = that constant (SPEC §9:
+  // blueprint and shelter pass 0).
+  int obs_hider = -1;
   bool is_lock_task() const {
     return task == Task::kLockBox || task == Task::kLockReturn || task == Task::kSequentialLock;
   }

@@ -286,6 +286,16 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   value_norm_ = st.value_norm;
 }
 
+namespace {
+// A slice of a network's head: "<net>/out_norm/...", "policy/logits/..." or "value/value/..." (EntityNet).
+bool is_head_slice(const std::string& name) {
+  const size_t slash = name.find('/');
+  if (slash == std::string::npos) return false;
+  const std::string_view rest = std::string_view(name).substr(slash + 1);
+  return rest.rfind("out_norm/", 0) == 0 || rest.rfind("logits/", 0) == 0 || rest.rfind("value/", 0) == 0;
+}
+}  // namespace
+
 std::string Trainer::initialize_from(const std::string& path) {
   if (iteration_ != 0) throw std::logic_error("Trainer::initialize_from: the run has already started");
   const nn::ObsShape& mine = net_->config().obs;
@@ -310,13 +320,15 @@ std::string Trainer::initialize_from(const std::string& path) {
     }
     return "";
   });
-  // The policy's slices always; the value net's (with its return normaliser) when init_value is set.
-  std::string carried = "policy weights";
+  // The policy's slices always; the value net's (with its return normaliser) when init_value is set; each
+  // network's head (its final layer norm and output layer) unless init_heads is 0.
+  std::string carried = cfg_.init_heads != 0 ? "policy weights" : "policy weights (heads from the seed)";
   const nn::ParamLayout& layout = net_->params().layout();
   float* values = net_->params().values();
   for (const nn::ParamSlice& slice : layout.slices()) {
     const bool value_net = slice.name.rfind("value/", 0) == 0;
     if (value_net && cfg_.init_value == 0) continue;
+    if (cfg_.init_heads == 0 && is_head_slice(slice.name)) continue;
     std::memcpy(values + slice.offset, st.values.data() + slice.offset, slice.size() * sizeof(float));
   }
   if (cfg_.init_value != 0) {

@@ -50,6 +50,7 @@ void visit_fields(Config& c, F&& f) {
   f("init_value", c.init_value, true);
   f("init_normalizers", c.init_normalizers, true);
   f("init_optimizer", c.init_optimizer, true);
+  f("init_heads", c.init_heads, true);
   f("checkpoint_every", c.checkpoint_every, false);
   f("inject_nan_at", c.inject_nan_at, true);
 }
@@ -399,6 +400,9 @@ void TrainConfig::validate() const {
   check(
       init_optimizer == 0 || init_value == 1, "init_optimizer", init_optimizer,
       "must be 0 when init_value is 0 (Adam's state covers both networks; a fresh value net starts it over)");
+  check(init_heads == 0 || init_heads == 1, "init_heads", init_heads, "must be 0 or 1 (false or true)");
+  check(init_optimizer == 0 || init_heads == 1, "init_optimizer", init_optimizer,
+        "must be 0 when init_heads is 0 (Adam's state belongs to the heads it was carried with)");
 }
 
 }  // namespace hns::ppo

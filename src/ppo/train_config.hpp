@@ -54,6 +54,9 @@ struct TrainConfig {
   int init_value = 1;        // 1: the value net's weights too (0: the value net starts from the seed)
   int init_normalizers = 1;  // 1: the observation normaliser (and, with init_value, the return normaliser)
   int init_optimizer = 0;    // 1: Adam's moments and step count
+  // 1: each network's final layer norm and output layer (policy logits, value) too; 0: those start from the
+  // seed, as the paper's fine-tuning reinitialises them (hns eval's default).
+  int init_heads = 1;
   // Run bookkeeping.
   int checkpoint_every = 10;  // iterations between checkpoints (and one at the end)
   int inject_nan_at = 0;      // testing: poison the loss at this iteration (0 = never)

@@ -273,6 +273,9 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     // The middle 70 % of the arena: cells 4 .. 24.
     EXPECT_GE(scene.target.x - 0.5 * scene.target.sx, 4 * physics::kCellSize - 1e-9);
     EXPECT_LE(scene.target.x + 0.5 * scene.target.sx, 25 * physics::kCellSize + 1e-9);
+    // SPEC §9.3's constant observation: the agent's "hider" feature reads 0.
+    EXPECT_EQ(shelter.state().obs_self[size_t(e) * shelter.layout().max_agents * Layout::kSelfFeatures + 9],
+              0.0f);
     // The boxes spawn anywhere and already block some rays, never all.
     EXPECT_GT(shelter.shelter_rays_reaching(e), 20);
     EXPECT_LE(shelter.shelter_rays_reaching(e), 100);

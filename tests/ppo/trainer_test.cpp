@@ -486,6 +486,37 @@ TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
   std::remove(mid.c_str());
 }
 
+// The paper's fine-tuning reinitialises each network's final layer norm and output layer: with init_heads = 0
+// exactly those slices (policy and value) keep the new run's seeded values, every other slice is carried.
+TEST(Trainer, InitHeadsZeroStartsTheHeadsFromTheSeed) {
+  const std::string path = temp_path("init_heads.bin");
+  Trainer source(tiny_quadrant());
+  source.iterate();
+  source.save(path);
+  const std::vector<float> trained = params_of(source);
+  TrainConfig cfg = tiny_quadrant();
+  cfg.seed = 12;
+  cfg.init_from = path;
+  cfg.init_heads = 0;
+  Trainer fresh(cfg);
+  const std::vector<float> seeded = params_of(fresh);
+  Trainer t(cfg);
+  EXPECT_NE(t.initialize_from(path).find("heads from the seed"), std::string::npos);
+  const std::vector<float> got = params_of(t);
+  std::vector<std::string> heads;
+  for (const nn::ParamSlice& slice : t.net().params().layout().slices()) {
+    const bool head = slice.name.find("/out_norm/") != std::string::npos ||
+                      slice.name.rfind("policy/logits/", 0) == 0 || slice.name.rfind("value/value/", 0) == 0;
+    if (head) heads.push_back(slice.name);
+    const std::vector<float>& want = head ? seeded : trained;
+    EXPECT_TRUE(std::equal(got.begin() + long(slice.offset), got.begin() + long(slice.offset + slice.size()),
+                           want.begin() + long(slice.offset)))
+        << slice.name << (head ? " (a head: from the seed)" : " (carried)");
+  }
+  EXPECT_EQ(heads.size(), 8u);  // out_norm gain and bias, output weights and bias, in each network
+  std::remove(path.c_str());
+}
+
 TEST(Trainer, NonFiniteLossStopsWithNumericalError) {
   TrainConfig c = tiny_quadrant();
   c.inject_nan_at = 2;
