@@ -421,11 +421,14 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     ++timed;
     const double eta = mean_seconds * double(cfg.iterations - m.iteration);
     const std::string ranks = comm.size() > 1 ? "  ranks " + std::to_string(comm.size()) : "";
+    char intrinsic[48] = "";
+    if (cfg.intrinsic != "none")
+      std::snprintf(intrinsic, sizeof intrinsic, " intrinsic %+.2f", m.intrinsic_reward);
     std::printf(
-        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f  entropy %.3f  kl %.4f%s  "
+        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f%s  entropy %.3f  kl %.4f%s  "
         "ETA %s\n",
         static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
-        m.steps_per_s, m.hider_reward, m.seeker_reward, m.entropy, m.approx_kl, ranks.c_str(),
+        m.steps_per_s, m.hider_reward, m.seeker_reward, intrinsic, m.entropy, m.approx_kl, ranks.c_str(),
         duration_text(eta).c_str());
     for (int k : reached) {
       std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());

@@ -318,6 +318,8 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
               state_.box_pos_start.data() + size_t(env) * layout_.max_boxes * 3);
   std::copy_n(state_.ramp_pos.data() + size_t(env) * layout_.max_ramps * 3, layout_.max_ramps * 3,
               state_.ramp_pos_start.data() + size_t(env) * layout_.max_ramps * 3);
+  std::copy_n(state_.agent_pos.data() + size_t(env) * layout_.max_agents * 3, layout_.max_agents * 3,
+              state_.agent_pos_start.data() + size_t(env) * layout_.max_agents * 3);
   std::copy_n(state_.box_locked.data() + size_t(env) * layout_.max_boxes, layout_.max_boxes,
               state_.task_locked.data() + size_t(env) * layout_.max_boxes);
   if (config_.world.is_lock_task()) {
@@ -916,6 +918,14 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   st.seeker_high_seen = run[kHighSeen];
   st.ramp_in_room_prep = prep[kRampInRoom];
   st.box_surf = run[kSurfCount] >= float(kSurfSteps) ? 1.0f : 0.0f;
+  st.max_agent_move = 0.0f;
+  for (int a = 0; a < worlds_[env]->num_agents(); ++a) {
+    const size_t i = (size_t(env) * layout_.max_agents + a) * 3;
+    const float dx = s.agent_pos[i] - s.agent_pos_start[i],
+                dy = s.agent_pos[i + 1] - s.agent_pos_start[i + 1];
+    const float dz = s.agent_pos[i + 2] - s.agent_pos_start[i + 2];
+    st.max_agent_move = std::max(st.max_agent_move, std::sqrt(dx * dx + dy * dy + dz * dz));
+  }
   sc.finished = true;
   reset_env(env, uint64_t(s.episode[env]) + 1);
   s.done[env] = 1;

@@ -149,6 +149,7 @@ struct Layout {
   X(int32_t, episode, 1, "episode number of the env (envs)")                                               \
   /* Episode statistics (SPEC §7). */                                                                     \
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                        \
+  X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                   \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")            \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")    \
@@ -209,7 +210,8 @@ struct BatchState {
   X(ramp_wall_dist, "m, closest a ramp came to an interior wall in the seeking phase (6: no such wall)")    \
   X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
-  X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")
+  X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")                \
+  X(max_agent_move, "m, largest agent displacement from its spawn at the end of the episode")
 
 // Statistics of one finished episode, reported by the step that ended it.
 struct EpisodeStats {

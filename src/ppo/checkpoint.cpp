@@ -84,6 +84,15 @@ class Reader {
     return s;
   }
   bool at_end() const { return i_ == n_; }
+  // The length of the array that starts here (without reading it).
+  uint64_t peek_length() {
+    need(sizeof(uint64_t));
+    uint64_t n;
+    std::memcpy(&n, p_ + i_, sizeof n);
+    if (n > (n_ - i_) / sizeof(uint32_t))
+      throw std::runtime_error("checkpoint " + path_ + " is truncated inside its payload");
+    return n;
+  }
 
  private:
   void need(uint64_t bytes) const {
@@ -156,6 +165,16 @@ std::string Trainer::checkpoint_payload() const {
   w.put(value_norm_.biased_mean);
   w.put(value_norm_.biased_sq);
   w.put(value_norm_.debias);
+  // Count-based exploration's state counts, per env in key order (only with intrinsic = count).
+  if (counts_) {
+    for (const auto& env : counts_->sorted()) {
+      std::vector<uint64_t> keys(env.size());
+      std::vector<uint32_t> n(env.size());
+      for (size_t i = 0; i < env.size(); ++i) keys[i] = env[i].first, n[i] = env[i].second;
+      w.put_array(keys.data(), keys.size());
+      w.put_array(n.data(), n.size());
+    }
+  }
 
   return w.bytes();
 }
@@ -211,6 +230,7 @@ struct Trainer::CheckpointState {
   std::array<std::vector<double>, nn::kNumObsKeys> obs_mean, obs_sq;
   std::array<double, nn::kNumObsKeys> obs_debias{};
   ScalarNormalizer value_norm;
+  std::vector<std::vector<std::pair<uint64_t, uint32_t>>> counts;  // intrinsic = count: per env of the run
 };
 
 Trainer::CheckpointState Trainer::read_checkpoint(
@@ -255,6 +275,18 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   st.value_norm.biased_mean = r.get<double>();
   st.value_norm.biased_sq = r.get<double>();
   st.value_norm.debias = r.get<double>();
+  if (saved.intrinsic == "count") {
+    st.counts.resize(size_t(saved.envs));
+    for (auto& env : st.counts) {
+      const uint64_t n = r.peek_length();
+      std::vector<uint64_t> keys(n);
+      std::vector<uint32_t> counts(n);
+      r.get_array(keys.data(), n, "the state counts");
+      r.get_array(counts.data(), n, "the state counts");
+      env.resize(n);
+      for (size_t i = 0; i < n; ++i) env[i] = {keys[i], counts[i]};
+    }
+  }
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
   return st;
 }
@@ -284,6 +316,7 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   adam_->set_steps(st.adam_steps);
   obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
   value_norm_ = st.value_norm;
+  if (counts_ && mode == LoadMode::kResume) counts_->restore(st.counts);
 }
 
 namespace {

@@ -44,6 +44,10 @@ void visit_fields(Config& c, F&& f) {
   f("value_coef", c.value_coef, true);
   f("grad_clip", c.grad_clip, true);
   f("weight_decay", c.weight_decay, true);
+  f("intrinsic", c.intrinsic, true);
+  f("count_state", c.count_state, true);
+  f("count_scale", c.count_scale, true);
+  f("extrinsic_coef", c.extrinsic_coef, true);
   f("gamma", c.gamma, true);
   f("lambda", c.lambda, true);
   f("init_from", c.init_from, true);
@@ -400,6 +404,12 @@ void TrainConfig::validate() const {
   check(
       init_optimizer == 0 || init_value == 1, "init_optimizer", init_optimizer,
       "must be 0 when init_value is 0 (Adam's state covers both networks; a fresh value net starts it over)");
+  check(intrinsic == "none" || intrinsic == "count", "intrinsic", intrinsic, "must be none or count");
+  check(count_state == "box_pos" || count_state == "box_full" || count_state == "full", "count_state",
+        count_state, "must be one of box_pos, box_full, full");
+  check(count_scale >= 0 && count_scale <= 100, "count_scale", count_scale, "must be in [0, 100]");
+  check(extrinsic_coef >= 0 && extrinsic_coef <= 100, "extrinsic_coef", extrinsic_coef,
+        "must be in [0, 100]");
   check(init_heads == 0 || init_heads == 1, "init_heads", init_heads, "must be 0 or 1 (false or true)");
   check(init_optimizer == 0 || init_heads == 1, "init_optimizer", init_optimizer,
         "must be 0 when init_heads is 0 (Adam's state belongs to the heads it was carried with)");

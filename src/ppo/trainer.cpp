@@ -31,9 +31,10 @@ constexpr uint64_t kActionStream = 0xA5A5'0001'0000'0000ULL;
 constexpr uint64_t kShuffleStream = 0xA5A5'0002'0000'0000ULL;
 
 constexpr int kNumStats = kNumPpoStats;
-// Per update block: episodes, then the sums of hider and seeker returns and of the HNS_EPISODE_STATS.
+// Per update block: episodes, then the sums of hider and seeker returns, of the HNS_EPISODE_STATS and of the
+// intrinsic returns.
 #define HNS_COUNT_EPISODE_STAT(name, doc) +1
-constexpr int kBlockEpisodeValues = 3 HNS_EPISODE_STATS(HNS_COUNT_EPISODE_STAT);
+constexpr int kBlockEpisodeValues = 3 HNS_EPISODE_STATS(HNS_COUNT_EPISODE_STAT) + 1;
 #undef HNS_COUNT_EPISODE_STAT
 
 float uniform_float(physics::Rng& rng) {
@@ -119,6 +120,7 @@ std::string IterationMetrics::to_json() const {
   add("episodes", "%d", episodes);
   add("hider_reward", "%.6g", hider_reward);
   add("seeker_reward", "%.6g", seeker_reward);
+  add("intrinsic_reward", "%.6g", intrinsic_reward);
 #define HNS_ADD_EPISODE_MEAN(name, doc) add(#name, "%.6g", name);
   HNS_EPISODE_STATS(HNS_ADD_EPISODE_MEAN)
 #undef HNS_ADD_EPISODE_MEAN
@@ -186,6 +188,16 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   ac.max_grad_norm = float(cfg_.grad_clip);
   adam_ = std::make_unique<nn::Adam>(net_->params().layout(), ac);
   obs_norm_ = std::make_unique<nn::ObsNormalizer>(nc.obs);
+  if (cfg_.intrinsic == "count") {
+    // The counts live with the envs that visit them; a checkpoint holds them all, so one process runs them.
+    if (R > 1) {
+      throw physics::ConfigError("intrinsic = count runs in one process (" + std::to_string(R) +
+                                 " ranks given): the state counts are per env and saved with the checkpoint");
+    }
+    count_hasher_ = std::make_unique<CountHasher>(parse_count_state(cfg_.count_state), cfg_.seed);
+    counts_ = std::make_unique<StateCounts>(cfg_.envs, cfg_.count_scale);
+  }
+  intrinsic_return_.assign(size_t(env1_ - env0_), 0.0);
 
   rollout_steps_ = cfg_.rollout_steps();
   rows_ = (env1_ - env0_) * L.max_agents;
@@ -329,6 +341,7 @@ void Trainer::rollout(IterationMetrics& m) {
     for (int e = block_env(k); e < block_env(k + 1); ++e) block_of[size_t(e - env0_)] = k - block0_;
   int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
   std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
+  std::fill(intrinsic_return_.begin(), intrinsic_return_.end(), 0.0);
   for (nn::ObsNormalizer::Sums& k : b.block_obs_sums) k.clear();
   for (nn::ObsNormalizer::Sums& e : b.episode_obs_sums) e.clear();
   const size_t na = size_t(shape.num_other_agents());
@@ -389,10 +402,19 @@ void Trainer::rollout(IterationMetrics& m) {
     m.t_simulate += seconds_since(tp);
     tp = mark("simulate", tp);
 
+    // The reward trained on: the game's, scaled, plus the intrinsic reward of the state the step reached
+    // (after an episode's last step: the next episode's first state, which the auto-reset put in its place).
+    const float extrinsic = float(cfg_.extrinsic_coef);
     for (int e = 0; e < E; ++e) {
+      float bonus = 0.0f;
+      if (counts_) {
+        bonus = counts_->visit(env0_ + e, count_hasher_->key(s, L, e));
+        intrinsic_return_[size_t(e)] += bonus;
+      }
       for (int a = 0; a < A; ++a) {
         const size_t r = row0 + size_t(e) * A + a;
-        b.reward[r] = s.reward[size_t(e) * A + a];
+        b.reward[r] =
+            extrinsic * s.reward[size_t(e) * A + a] + (s.agent_exists[size_t(e) * A + a] ? bonus : 0.0f);
         b.last[r] = (s.done[e] != 0 || t == T - 1) ? 1 : 0;
       }
     }
@@ -402,6 +424,8 @@ void Trainer::rollout(IterationMetrics& m) {
       const int blk = block_of[size_t(st.env)];
       if (!st.discarded) b.block_obs_sums[size_t(blk)].merge(b.episode_obs_sums[st.env]);
       b.episode_obs_sums[st.env].clear();
+      const double intrinsic = intrinsic_return_[size_t(st.env)];
+      intrinsic_return_[size_t(st.env)] = 0.0;
       if (st.discarded) {
         // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
         // rollout leave every loss and statistic, as padding agents do.
@@ -414,7 +438,7 @@ void Trainer::rollout(IterationMetrics& m) {
 #define HNS_EPISODE_VALUE(name, doc) st.name,
                                             HNS_EPISODE_STATS(HNS_EPISODE_VALUE)
 #undef HNS_EPISODE_VALUE
-      };
+                                                float(intrinsic)};
       double* sums = b.block_episodes.data() + size_t(blk) * kBlockEpisodeValues;
       for (int k = 0; k < kBlockEpisodeValues; ++k) sums[k] += v[k];
     }
@@ -452,7 +476,7 @@ void Trainer::rollout(IterationMetrics& m) {
 #define HNS_EPISODE_MEAN(name, doc) &m.name,
                                             HNS_EPISODE_STATS(HNS_EPISODE_MEAN)
 #undef HNS_EPISODE_MEAN
-    };
+                                                & m.intrinsic_reward};
     for (int k = 1; k < kBlockEpisodeValues; ++k) *dst[k - 1] = totals[k] / episodes;
   }
 }

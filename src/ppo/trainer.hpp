@@ -37,6 +37,7 @@
 #include "nn/adam.hpp"
 #include "nn/obs_normalizer.hpp"
 #include "ppo/comm.hpp"
+#include "ppo/intrinsic.hpp"
 #include "ppo/train_config.hpp"
 
 namespace hns::ppo {
@@ -61,6 +62,7 @@ struct IterationMetrics {
   // Episodes that ended during the iteration (means over them).
   int episodes = 0;
   double hider_reward = 0, seeker_reward = 0;  // episode returns: summed mean reward per team
+  double intrinsic_reward = 0;  // episode return of the intrinsic reward (config intrinsic; 0 without)
   // The per-episode statistics of batch::EpisodeStats (SPEC §7 and the stage detectors), same names.
 #define HNS_DECLARE_EPISODE_MEAN(name, doc) double name = 0;
   HNS_EPISODE_STATS(HNS_DECLARE_EPISODE_MEAN)
@@ -176,6 +178,11 @@ class Trainer {
   std::unique_ptr<nn::ObsNormalizer> obs_norm_;
   ScalarNormalizer value_norm_;
   std::unique_ptr<Buffers> buf_;
+  // Count-based exploration (config intrinsic = count): the state hash, the per-env counts, and each local
+  // env's intrinsic return so far this episode.
+  std::unique_ptr<CountHasher> count_hasher_;
+  std::unique_ptr<StateCounts> counts_;
+  std::vector<double> intrinsic_return_;
   int64_t iteration_ = 0;
   int64_t agent_steps_ = 0;
   int64_t env_steps_ = 0;

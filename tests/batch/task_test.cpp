@@ -240,6 +240,21 @@ TEST(Shelter, LidarSeesTheCylinderAndItHidesABox) {
   EXPECT_EQ(s.vis_boxes[0], 1);
 }
 
+// The paper's agent movement statistic: the largest distance of an agent from its spawn when the episode
+// ends.
+TEST(EpisodeStatistics, MaxAgentMoveIsTheDistanceFromTheSpawn) {
+  BatchConfig c = task_config("lockbox");
+  c.world.horizon = 3;
+  BatchSim sim(c);
+  sim.load_scene(0, lone_agent_scene(agent_at(1.0, 1.0), {cube_at(4.0, 4.0)}));
+  sim.mutable_world(0).set_agent_pose(0, 3.0, 1.0, physics::kAgentRadius, 0.0);
+  sim.resync(0);
+  const std::vector<AgentAction> idle(sim.layout().max_agents);
+  for (int t = 0; t < 3; ++t) sim.step(idle);
+  ASSERT_EQ(sim.finished().size(), 1u);
+  EXPECT_NEAR(sim.finished()[0].max_agent_move, 2.0, 0.02);
+}
+
 TEST(TransferTasks, PresetsValidateAndPlace) {
   for (const char* name : {"lock-and-return", "sequential-lock", "shelter"}) {
     physics::WorldConfig w = physics::world_preset(name);
