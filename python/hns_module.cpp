@@ -82,11 +82,13 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"episode", {}},
       {"box_pos_start", {B, 3}},
       {"ramp_pos_start", {R, 3}},
+      {"agent_pos_start", {A, 3}},
       {"stat_prep", {batch::Layout::kPrepStats}},
       {"stat_run", {batch::Layout::kRunStats}},
       {"episode_return", {2}},
       {"task_target", {}},
       {"task_dist", {}},
+      {"task_spawn", {2}},
       {"task_locked", {B}},
       {"obs_self", {A, batch::Layout::kSelfFeatures}},
       {"obs_agents", {A, O, batch::Layout::kAgentFeatures}},
@@ -107,6 +109,8 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
     dims = {L.shape_wedges}, found = true;
   } else if (name.rfind("shape_sphere_", 0) == 0) {
     dims = {L.shape_spheres}, found = true;
+  } else if (name.rfind("shape_cyl_", 0) == 0) {
+    dims = {L.shape_cylinders}, found = true;
   }
   for (const auto& row : table) {
     if (name == row.name) dims = row.dims, found = true;

@@ -32,7 +32,7 @@ def random_actions(rng, env):
     return a
 
 
-@pytest.mark.parametrize("scene", ["quadrant", "full", "lockbox"])
+@pytest.mark.parametrize("scene", ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter"])
 def test_shapes_and_dtypes(scene):
     env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
     sizes = {"A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes, "R": env.max_ramps}
@@ -57,6 +57,10 @@ def test_shapes_and_dtypes(scene):
     scene_info = env.scene(0)
     assert scene_info["walls"].ndim == 2 and scene_info["walls"].shape[1] == 6
     assert scene_info["agents"].shape == (scene_info["num_hiders"] + scene_info["num_seekers"], 6)
+    # The shelter task's cylinder (axis x, y, radius, height), in no other scene.
+    assert scene_info["cylinders"].shape == ((1, 4) if scene == "shelter" else (0, 4))
+    if scene == "shelter":
+        assert state["shape_cyl_r"].shape == (3, 1) and 0.75 <= state["shape_cyl_r"][0, 0] <= 1.0
 
 
 def test_views_are_the_batch_buffers_without_copies():

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "ppo/eval.hpp"
 #include "ppo/trainer.hpp"
 
 namespace hns::ppo {
@@ -35,6 +36,30 @@ TEST(PpoLearning, AgentLearnsToReachAndLockABox) {
   std::printf("first iteration %.2f, mean of the last 5 iterations %.2f\n", first, last5);
   EXPECT_LT(first, 10.0);  // the random-policy level
   EXPECT_GT(last5, 40.0);  // most episodes end with the box locked early and held
+}
+
+// The transfer suite's box-locking family: from scratch, lock-and-return's return (one box in 6 random rooms,
+// lock it and go back to the spawn, 120 steps) rises above the uniformly random policy's within 40
+// iterations (307 k agent-steps, about 20 s on 2 cores). hns eval measured 1.3 to 1.6 after this budget over
+// seeds 1-3, against 0.36 for the random policy.
+TEST(PpoLearning, LockAndReturnBeatsTheRandomPolicy) {
+  TrainConfig c;
+  c.scene = "lock-and-return";
+  c.model = "small";
+  c.envs = 64;
+  c.iterations = 40;
+  c.threads = 0;
+  c.seed = 1;
+  const double random = random_policy_return(c, 256);
+  Trainer t(c);
+  double last5 = 0;
+  for (int i = 1; i <= c.iterations; ++i) {
+    const IterationMetrics m = t.iterate();
+    if (i > c.iterations - 5) last5 += m.hider_reward / 5;
+  }
+  std::printf("lock-and-return: random policy %.2f, mean of the last 5 iterations %.2f\n", random, last5);
+  EXPECT_LT(random, 0.6);
+  EXPECT_GT(last5, random + 0.5);
 }
 
 }  // namespace
