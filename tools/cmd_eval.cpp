@@ -171,8 +171,8 @@ std::string table_markdown(const Summary& s, const json& settings) {
         o << " not run | |";
         continue;
       }
-      o << " " << interval_text(m) << " (" << m.n << " seeds) | " << fmt(ppo::normalised(m.mean, rnd, best))
-        << " |";
+      o << " " << interval_text(m) << (m.n > 1 ? " (" + std::to_string(m.n) + " seeds)" : "") << " | "
+        << fmt(ppo::normalised(m.mean, rnd, best)) << " |";
     }
     o << "\n";
   }
@@ -335,7 +335,12 @@ int run_eval(const EvalOptions& opt) {
     if (!fs::is_regular_file(c.checkpoint, ec))
       throw physics::ConfigError("--pretrained " + p + ": no such checkpoint file");
     c.checkpoint = fs::absolute(c.checkpoint).lexically_normal().string();
-    const ppo::TrainConfig theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
+    ppo::TrainConfig theirs;
+    try {
+      theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
+    } catch (const std::runtime_error& e) {
+      throw physics::ConfigError("--pretrained " + p + ": " + e.what());
+    }
     if (theirs.model != opt.model) {
       throw physics::ConfigError("--pretrained " + p + ": the checkpoint's model is " + theirs.model +
                                  ", this evaluation's is " + opt.model + " (--model)");
@@ -349,10 +354,10 @@ int run_eval(const EvalOptions& opt) {
   base.envs = opt.envs;
   base.iterations = opt.iterations;
   base.threads = opt.threads;
-  // Fine-tuning carries the policy's weights and the observation normaliser, and starts each network's head
-  // (final layer norm and output layer) from the seed, as the paper does; the value net learns the new reward
-  // from the seed's weights (--set init_value=1 carries it, --set init_heads=1 the heads).
-  base.init_value = 0;
+  // Fine-tuning as the paper does it: both networks' weights and the observation normaliser are carried,
+  // except each network's head (final layer norm and output layer), which starts from the seed (--set
+  // init_heads=1 carries them, --set init_value=0 starts the whole value net from the seed).
+  base.init_value = 1;
   base.init_heads = 0;
   for (const std::string& kv : opt.sets) {
     const auto eq = kv.find('=');
@@ -385,11 +390,17 @@ int run_eval(const EvalOptions& opt) {
       }
     }
   }
+  json pretrained = json::object();
+  for (const Condition& c : conditions) {
+    if (!c.checkpoint.empty()) pretrained[c.label] = c.checkpoint;
+  }
+  // What a resumed evaluation must share with the one it continues (tasks and seeds may be added).
   json settings = {{"model", opt.model},
                    {"envs", opt.envs},
                    {"iterations", opt.iterations},
                    {"random_episodes", opt.random_episodes},
-                   {"sets", opt.sets}};
+                   {"sets", opt.sets},
+                   {"pretrained", pretrained}};
 
   const fs::path dir(opt.out);
   const fs::path eval_json = dir / "eval.json";

@@ -98,7 +98,7 @@ void BatchState::allocate(const Layout& L, int num_envs) {
 Layout Layout::of(const BatchConfig& config) {
   const physics::SceneConfig& scene = config.world.scene;
   Layout L;
-  L.max_agents = std::max(config.world.max_agents(), config.world.obs_min_agents);
+  L.max_agents = config.world.agent_slots();
   L.max_boxes = scene.boxes.max;
   L.max_ramps = std::max(scene.ramps.max, config.world.obs_min_ramps);
   L.max_walls = ::hns::batch::max_walls(scene);
@@ -267,6 +267,11 @@ int64_t BatchSim::unstable_resets() const {
 }
 
 void BatchSim::load_scene(int env, const physics::Scene& scene) {
+  if (scene.has_target && layout_.shape_cylinders == 0) {
+    throw std::logic_error(
+        "BatchSim::load_scene: a scene with a cylinder in a batch without a cylinder slot "
+        "(its scene config has target_diameter_max 0)");
+  }
   worlds_[env]->reset_with_scene(scene, uint64_t(state_.episode[env]));
   start_episode_env(env, uint64_t(state_.episode[env]));
   observe_env(env);
@@ -662,8 +667,9 @@ void BatchSim::rewards_env(int env) {
   s.done[env] = world.done() ? 1 : 0;
 }
 
-// The shelter reward's rays (SPEC §9.3): 25 start points per side of the square [0.202, 5.798]² on the floor
-// (np.linspace along each side: the corners start two rays each), aimed at the cylinder's centre. A ray
+// The shelter reward's rays (SPEC §9.3): 100 start points evenly spaced around the square [0.202, 5.798]² on
+// the floor, 25 per side, each side's from its first corner (counter-clockwise from (0.202, 0.202)) up to
+// but not including the next, aimed at the cylinder's centre. A ray
 // reaches the cylinder when nothing else lies on the segment from its start to the cylinder; the segments
 // are cast the other way, as one fan from the centre that skips the cylinder (nothing else can be inside
 // it), so the 100 rays share the vector kernel's blocks.
@@ -684,10 +690,10 @@ int BatchSim::shelter_rays_reaching(int env) const {
   for (int side = 0; side < 4; ++side) {
     for (int k = 0; k < kShelterRaysPerSide; ++k) {
       const int i = side * kShelterRaysPerSide + k;
-      const float u =
-          kShelterEdgeLo + (kShelterEdgeHi - kShelterEdgeLo) * float(k) / (kShelterRaysPerSide - 1);
-      const float ox = side == 0 || side == 2 ? u : side == 1 ? kShelterEdgeHi : kShelterEdgeLo;
-      const float oy = side == 1 || side == 3 ? u : side == 0 ? kShelterEdgeLo : kShelterEdgeHi;
+      const float step = (kShelterEdgeHi - kShelterEdgeLo) * float(k) / kShelterRaysPerSide;
+      const float up = kShelterEdgeLo + step, down = kShelterEdgeHi - step;
+      const float ox = side == 0 ? up : side == 1 ? kShelterEdgeHi : side == 2 ? down : kShelterEdgeLo;
+      const float oy = side == 0 ? kShelterEdgeLo : side == 1 ? up : side == 2 ? kShelterEdgeHi : down;
       const float ex = ox - cx, ey = oy - cy, ez = 0.0f - cz;
       len[i] = std::sqrt(ex * ex + ey * ey + ez * ez);
       dx[i] = ex / len[i], dy[i] = ey / len[i], dz[i] = ez / len[i];

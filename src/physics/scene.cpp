@@ -11,6 +11,7 @@
 #include <array>
 #include <cmath>
 #include <sstream>
+#include <utility>
 
 namespace hns::physics {
 namespace {
@@ -303,6 +304,7 @@ void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect
 // ---------------------------------------------------------------------------------------------------------------
 // Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
 enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom, kMiddle };
+constexpr double kMiddleFraction = 0.7;  // shelter's cylinder: uniform_placement_middle(0.7)
 
 struct Cell {
   int i = 0, j = 0;
@@ -312,10 +314,17 @@ Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, co
                   Rng& rng) {
   constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
   switch (p) {
-    case Placement::kMiddle: {  // uniform_placement_middle(0.7): the central 70 % of the grid
-      const int lo = static_cast<int>(0.5 * kG - 0.35 * kG), hi = static_cast<int>(0.5 * kG + 0.35 * kG);
-      const int i = rng.uniform_int(lo, std::max(lo + 1, hi - cx - 1));
-      return {i, rng.uniform_int(lo, std::max(lo + 1, hi - cy - 1))};
+    case Placement::kMiddle: {  // uniform_placement_middle(f), f = kMiddleFraction (SPEC §2.5)
+      auto range = [](int c) {
+        constexpr double f = kMiddleFraction;
+        const int lo = static_cast<int>((kG - c) * (1 - f) / 2 + f),
+                  hi = static_cast<int>((kG - c) * (1 + f) / 2 - f);
+        return std::pair<int, int>{lo, std::max(lo + 1, hi)};
+      };
+      const auto [xlo, xhi] = range(cx);
+      const auto [ylo, yhi] = range(cy);
+      const int i = rng.uniform_int(xlo, xhi);
+      return {i, rng.uniform_int(ylo, yhi)};
     }
     case Placement::kInRoom: {
       const int i = rng.uniform_int(room.x0, std::max(room.x0, room.x1 - cx) + 1);

@@ -6,6 +6,7 @@
 //   -> forces -> substeps {collide, QuickStep, implicit damping, keep yaw-only} -> visibility for next step
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
 #include <memory>
@@ -95,6 +96,8 @@ struct WorldConfig {
   void validate() const;
   int prep_steps() const;
   int max_agents() const { return scene.hiders.max + scene.seekers.max; }
+  // Agent slots of a batch of this world: max_agents(), at least obs_min_agents (batch::Layout's A).
+  int agent_slots() const { return std::max(max_agents(), obs_min_agents); }
 };
 
 enum class Team : uint8_t { kHider = 0, kSeeker = 1 };

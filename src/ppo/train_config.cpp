@@ -245,6 +245,11 @@ std::string TrainConfig::to_json() const {
   visit_fields(*this, [&](const char* name, const auto& field, bool) {
     // A run started from the seed writes no init_* keys: its files stay readable by versions without them.
     if (init_from.empty() && std::string_view(name).substr(0, 5) == "init_") return;
+    // Likewise a run without an intrinsic reward writes none of its keys.
+    const std::string_view n(name);
+    if (intrinsic == "none" && extrinsic_coef == 1.0 &&
+        (n == "intrinsic" || n == "count_state" || n == "count_scale" || n == "extrinsic_coef"))
+      return;
     out += first ? "  " : ",\n  ";
     first = false;
     out += json_string(name) + ": ";
@@ -269,6 +274,13 @@ void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
 
 void TrainConfig::merge_run_json(std::string_view text, const std::string& origin) {
   grad_groups = 16;  // before the key existed the update always used 16 gradient groups
+  // Before these keys existed (and in a run that writes none of them, see to_json) there was no intrinsic
+  // reward and fine-tuning carried the heads.
+  intrinsic = "none";
+  count_state = "box_pos";
+  count_scale = 0.1;
+  extrinsic_coef = 1.0;
+  init_heads = 1;
   merge_json(text, origin);
 }
 
@@ -370,10 +382,10 @@ void TrainConfig::validate() const {
         "must divide the rollout length (horizon x episodes_per_iteration)");
   // The rollout buffer holds every agent slot of every env for every step of an iteration (several KiB of
   // observations per row); the cap keeps its row indices in 32 bits and its size within a server's memory.
-  const int64_t rows = int64_t(rollout_steps()) * envs * w.max_agents();
+  const int64_t rows = int64_t(rollout_steps()) * envs * w.agent_slots();
   if (rows > kMaxRolloutRows) {
     throw ConfigError("envs " + std::to_string(envs) + " x rollout steps " + std::to_string(rollout_steps()) +
-                      " (horizon x episodes_per_iteration) x agent slots " + std::to_string(w.max_agents()) +
+                      " (horizon x episodes_per_iteration) x agent slots " + std::to_string(w.agent_slots()) +
                       " = " + std::to_string(rows) +
                       " agent-step rows in the rollout buffer: must be at most " +
                       std::to_string(kMaxRolloutRows) + "; lower envs, episodes_per_iteration or horizon");

@@ -165,21 +165,18 @@ Scene shelter_scene(Spawn agent, std::vector<Spawn> boxes, std::vector<physics::
   return s;
 }
 
-// The rays the double-precision reference sees reach the cylinder: the same 100 start points.
+// The rays the double-precision reference sees reach the cylinder, cast forward from the 100 start points:
+// every 5.596 / 25 m around the square [0.202, 5.798]², counter-clockwise from (0.202, 0.202).
 int reference_rays_reaching(BatchSim& sim) {
   physics::World& w = sim.mutable_world(0);
   const physics::Occluders occ = w.occluders();
   int reaching = 0;
+  const double corner[4][2] = {{0.202, 0.202}, {5.798, 0.202}, {5.798, 5.798}, {0.202, 5.798}};
   for (int side = 0; side < 4; ++side) {
+    const double* a = corner[side];
+    const double* b = corner[(side + 1) % 4];
     for (int k = 0; k < 25; ++k) {
-      const double u = 0.202 + (5.798 - 0.202) * k / 24.0;
-      const double o[3] = {side == 0 || side == 2 ? u
-                           : side == 1            ? 5.798
-                                                  : 0.202,
-                           side == 1 || side == 3 ? u
-                           : side == 0            ? 0.202
-                                                  : 5.798,
-                           0.0};
+      const double o[3] = {a[0] + (b[0] - a[0]) * k / 25.0, a[1] + (b[1] - a[1]) * k / 25.0, 0.0};
       double d[3] = {3.0 - o[0], 3.0 - o[1], 0.25};
       const double len = std::sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
       for (double& x : d) x /= len;
@@ -199,13 +196,14 @@ TEST(Shelter, RewardCountsTheRaysThatReachTheCylinder) {
   EXPECT_GE(sim.shelter_rays_reaching(0), 98);
   EXPECT_NEAR(sim.state().reward[0], -0.001 * sim.shelter_rays_reaching(0), 1e-6);
 
-  // A 0.5 m wall along x = 1.5 blocks the 25 rays of the left side and the 6 of the bottom and top sides
-  // that start left of it (x = 0.202 ... 1.368): 63 arrive. The agent stands behind the wall.
+  // A 0.5 m wall along x = 1.4 (1.35 to 1.45 m) blocks the 25 rays of the left side (y = 5.798 down to
+  // 0.426), the 6 of the bottom side that start left of it (x = 0.202 up to 1.321) and the 5 of the top side
+  // (x = 1.321 down to 0.426): 64 arrive. The agent stands behind the wall.
   sim.load_scene(
-      0, shelter_scene(agent_at(0.8, 3.0), {}, {physics::StaticBox{1.5, 3.0, 0.25, 0.05, 2.8, 0.25}}));
+      0, shelter_scene(agent_at(0.8, 3.0), {}, {physics::StaticBox{1.4, 3.0, 0.25, 0.05, 2.8, 0.25}}));
   sim.step(idle);
-  EXPECT_EQ(sim.shelter_rays_reaching(0), 63);
-  EXPECT_NEAR(sim.state().reward[0], -0.063, 1e-6);
+  EXPECT_EQ(sim.shelter_rays_reaching(0), 64);
+  EXPECT_NEAR(sim.state().reward[0], -0.064, 1e-6);
 }
 
 TEST(Shelter, AWallOfBoxesBlocksWhatTheReferenceSays) {
@@ -217,7 +215,7 @@ TEST(Shelter, AWallOfBoxesBlocksWhatTheReferenceSays) {
   sim.step(idle);
   const int reaching = sim.shelter_rays_reaching(0);
   EXPECT_EQ(reaching, reference_rays_reaching(sim));
-  EXPECT_GE(reaching, 63);  // the wall's 37 at most
+  EXPECT_GE(reaching, 64);  // the x = 1.5 line cuts at most the left side's 25, the bottom's 6, the top's 5
   EXPECT_LT(reaching, 70);  // the gaps let a few through
   EXPECT_NEAR(sim.state().reward[0], -0.001 * reaching, 1e-6);
 }
@@ -285,15 +283,20 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     EXPECT_LE(scene.target.sx, 2.0);
     EXPECT_EQ(scene.boxes.size(), 8u);
     EXPECT_EQ(scene.num_elongated, 3);
-    // The middle 70 % of the arena: cells 4 .. 24.
-    EXPECT_GE(scene.target.x - 0.5 * scene.target.sx, 4 * physics::kCellSize - 1e-9);
-    EXPECT_LE(scene.target.x + 0.5 * scene.target.sx, 25 * physics::kCellSize + 1e-9);
+    // uniform_placement_middle(0.7) of SPEC §2.5: a footprint of c = 8, 9 or 10 cells starts at a cell in
+    // [4, 17], [3, 16] or [3, 15]; the cylinder lies within its cells.
+    const int c = int(std::ceil(scene.target.sx / physics::kCellSize - 1e-9));
+    const int lo = c == 8 ? 4 : 3, hi = c == 8 ? 17 : c == 9 ? 16 : 15;
+    EXPECT_GE(scene.target.x - 0.5 * scene.target.sx, lo * physics::kCellSize - 1e-9) << c;
+    EXPECT_LE(scene.target.x + 0.5 * scene.target.sx, (hi + c) * physics::kCellSize + 1e-9) << c;
+    EXPECT_GE(scene.target.y - 0.5 * scene.target.sx, lo * physics::kCellSize - 1e-9) << c;
+    EXPECT_LE(scene.target.y + 0.5 * scene.target.sx, (hi + c) * physics::kCellSize + 1e-9) << c;
     // SPEC §9.3's constant observation: the agent's "hider" feature reads 0.
     EXPECT_EQ(shelter.state().obs_self[size_t(e) * shelter.layout().max_agents * Layout::kSelfFeatures + 9],
               0.0f);
     // The boxes spawn anywhere and already block some rays, never all.
     EXPECT_GT(shelter.shelter_rays_reaching(e), 20);
-    EXPECT_LE(shelter.shelter_rays_reaching(e), 100);
+    EXPECT_LT(shelter.shelter_rays_reaching(e), 100);
   }
 }
 

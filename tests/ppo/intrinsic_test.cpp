@@ -174,6 +174,26 @@ TEST(CountBased, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsCounts) {
   std::remove(path.c_str());
 }
 
+// A run without an intrinsic reward writes none of its keys (older versions read its files), and the config
+// of a run or checkpoint from before the keys existed reads as having none, whatever the reading run uses.
+TEST(CountBased, ConfigKeysStayOutOfRunsWithoutThem) {
+  TrainConfig plain = count_config();
+  plain.intrinsic = "none";
+  EXPECT_EQ(plain.to_json().find("intrinsic"), std::string::npos);
+  EXPECT_EQ(plain.to_json().find("count_state"), std::string::npos);
+  EXPECT_NE(count_config().to_json().find("\"intrinsic\": \"count\""), std::string::npos);
+  TrainConfig reader = count_config();
+  reader.init_heads = 0;
+  reader.merge_run_json(plain.to_json(), "old config.json");
+  EXPECT_EQ(reader.intrinsic, "none");
+  EXPECT_EQ(reader.extrinsic_coef, 1.0);
+  EXPECT_EQ(reader.init_heads, 1);
+  TrainConfig back;
+  back.merge_run_json(count_config().to_json(), "config.json");
+  EXPECT_EQ(back.intrinsic, "count");
+  EXPECT_EQ(back.count_state, "full");
+}
+
 TEST(CountBased, BadKeysAreRefused) {
   TrainConfig c = count_config();
   c.intrinsic = "curiosity";
