@@ -62,5 +62,33 @@ TEST(PpoLearning, LockAndReturnBeatsTheRandomPolicy) {
   EXPECT_GT(last5, random + 0.5);
 }
 
+// The intrinsic-motivation family: with the count-based reward alone on the boxes' positions (the paper's
+// best state representation) the agents learn to push the boxes around to reach unseen states: the boxes'
+// largest displacement per episode grows well beyond the initial policy's (0.18 m in the first iteration of a
+// 64-env run, 0.6 m by iteration 21 and 1.2 m by iteration 50).
+TEST(PpoLearning, CountBasedAgentsLearnToMoveBoxes) {
+  TrainConfig c;
+  c.scene = "quadrant";
+  c.model = "small";
+  c.envs = 32;
+  c.iterations = 30;
+  c.threads = 0;
+  c.seed = 1;
+  c.intrinsic = "count";
+  c.count_state = "box_pos";
+  c.extrinsic_coef = 0.0;
+  Trainer t(c);
+  double first = 0, last5 = 0, intrinsic_first = 0, intrinsic_last5 = 0;
+  for (int i = 1; i <= c.iterations; ++i) {
+    const IterationMetrics m = t.iterate();
+    if (i <= 3) first += m.max_box_move / 3, intrinsic_first += m.intrinsic_reward / 3;
+    if (i > c.iterations - 5) last5 += m.max_box_move / 5, intrinsic_last5 += m.intrinsic_reward / 5;
+  }
+  std::printf("count-based: largest box move %.2f m -> %.2f m, intrinsic return %.2f -> %.2f\n", first, last5,
+              intrinsic_first, intrinsic_last5);
+  EXPECT_GT(last5, 2.0 * first);
+  EXPECT_GT(intrinsic_last5, intrinsic_first);
+}
+
 }  // namespace
 }  // namespace hns::ppo
