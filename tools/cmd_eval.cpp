@@ -394,7 +394,8 @@ int run_eval(const EvalOptions& opt) {
   for (const Condition& c : conditions) {
     if (!c.checkpoint.empty()) pretrained[c.label] = c.checkpoint;
   }
-  // What a resumed evaluation must share with the one it continues (tasks and seeds may be added).
+  // What a resumed evaluation must share with the one it continues (tasks, seeds and --pretrained conditions
+  // may be added).
   json settings = {{"model", opt.model},
                    {"envs", opt.envs},
                    {"iterations", opt.iterations},
@@ -418,9 +419,21 @@ int run_eval(const EvalOptions& opt) {
       try {
         std::ifstream in(eval_json);
         saved = json::parse(in);
-        if (saved.at("settings") != settings) {
-          throw physics::ConfigError("--resume " + opt.out + ": its settings " + saved.at("settings").dump() +
-                                     " differ from these " + settings.dump());
+        // Conditions may be added; a label keeps its checkpoint.
+        json old = saved.at("settings"), now = settings;
+        const json old_pretrained = old.value("pretrained", json::object());
+        old.erase("pretrained"), now.erase("pretrained");
+        if (old != now) {
+          throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
+                                     " differ from these " + now.dump());
+        }
+        for (const auto& [label, path] : old_pretrained.items()) {
+          if (pretrained.contains(label) && pretrained[label] != path) {
+            throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " +
+                                       path.get<std::string>() + ", now " +
+                                       pretrained[label].get<std::string>());
+          }
+          if (!pretrained.contains(label)) settings["pretrained"][label] = path;  // its runs stay recorded
         }
         for (auto& [task, value] : saved.at("random").items()) s.random[task] = value.get<double>();
         for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));

@@ -315,6 +315,9 @@ else
 fi
 expect_fail 2 "holds an evaluation" eval --out "$tmp/eval" --tasks lockbox --iterations 2
 expect_fail 2 "settings .* differ" eval --out "$tmp/eval" --tasks lockbox --iterations 3 --envs 2 --resume
+cp "$tmp/init-good.bin" "$tmp/init-other.bin"
+expect_fail 2 "pretrained lb was .*init-good.bin, now .*init-other.bin" eval --out "$tmp/eval" --tasks lockbox \
+  --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --pretrained "lb=$tmp/init-other.bin" --resume
 expect_fail 2 "not a transfer task" eval --out "$tmp/eval-bad" --tasks quadrant
 expect_fail 2 "tasks: scene = 'moon'" eval --out "$tmp/eval-bad" --tasks moon
 expect_fail 2 "cannot start shelter: .*entity types" eval --out "$tmp/eval-bad" --tasks shelter \
