@@ -124,13 +124,13 @@ struct Summary {
     for (const RunRecord* r : of(task, cond)) v.push_back(final_return(*r));
     return ppo::mean_interval90(v);
   }
-  // The best condition's mean final return (the normalisation's 1), or the random return without runs.
+  // The normalisation's 1: the best condition's mean final return, or the random return where no condition
+  // beats it (every normalised value is then 0).
   double best(const std::string& task) const {
     double b = random.at(task);
-    bool any = false;
     for (const std::string& c : conditions) {
       const ppo::MeanInterval m = final_of(task, c);
-      if (m.n > 0 && (!any || m.mean > b)) b = m.mean, any = true;
+      if (m.n > 0) b = std::max(b, m.mean);
     }
     return b;
   }
