@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <nlohmann/json.hpp>
@@ -48,9 +49,26 @@ struct EvalOptions {
 };
 
 struct Condition {
-  std::string label;       // "scratch" or the --pretrained label
-  std::string checkpoint;  // absolute path, "" for scratch
+  std::string label;        // "scratch" or the --pretrained label
+  std::string checkpoint;   // absolute path, "" for scratch
+  std::string fingerprint;  // FNV-1a 64 of the checkpoint file, 16 hex digits
 };
+
+// FNV-1a 64 of a file's bytes as 16 hex digits.
+std::string file_fingerprint(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  uint64_t h = 0xcbf29ce484222325ULL;
+  char buf[1 << 16];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    for (std::streamsize i = 0; i < in.gcount(); ++i) {
+      h ^= static_cast<unsigned char>(buf[i]);
+      h *= 0x100000001b3ULL;
+    }
+  }
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
 
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
@@ -316,38 +334,43 @@ int run_eval(const EvalOptions& opt) {
     if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
   }
-  std::vector<Condition> conditions = {{"scratch", ""}};
-  for (const std::string& p : opt.pretrained) {
-    const auto eq = p.find('=');
-    if (eq == std::string::npos || eq == 0 || eq + 1 == p.size())
-      throw physics::ConfigError("--pretrained " + p + ": expected LABEL=CHECKPOINT");
-    Condition c{p.substr(0, eq), p.substr(eq + 1)};
-    for (char ch : c.label) {
-      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_'))
-        throw physics::ConfigError("--pretrained " + p +
-                                   ": the label may hold letters, digits, - and _ only");
-    }
-    for (const Condition& other : conditions) {
-      if (other.label == c.label)
-        throw physics::ConfigError("--pretrained: label '" + c.label + "' is used twice");
-    }
+  // A --pretrained condition: a readable checkpoint of this evaluation's model, identified by its bytes.
+  auto condition_of = [&](const std::string& label, const std::string& path, const std::string& flag) {
+    Condition c{label, path};
     std::error_code ec;
     if (!fs::is_regular_file(c.checkpoint, ec))
-      throw physics::ConfigError("--pretrained " + p + ": no such checkpoint file");
+      throw physics::ConfigError(flag + ": no such checkpoint file");
     c.checkpoint = fs::absolute(c.checkpoint).lexically_normal().string();
     ppo::TrainConfig theirs;
     try {
       theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
     } catch (const std::runtime_error& e) {
-      throw physics::ConfigError("--pretrained " + p + ": " + e.what());
+      throw physics::ConfigError(flag + ": " + e.what());
     }
     if (theirs.model != opt.model) {
-      throw physics::ConfigError("--pretrained " + p + ": the checkpoint's model is " + theirs.model +
+      throw physics::ConfigError(flag + ": the checkpoint's model is " + theirs.model +
                                  ", this evaluation's is " + opt.model + " (--model)");
     }
-    conditions.push_back(c);
+    c.fingerprint = file_fingerprint(c.checkpoint);
+    return c;
+  };
+  std::vector<Condition> conditions = {{"scratch", "", ""}};
+  for (const std::string& p : opt.pretrained) {
+    const auto eq = p.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == p.size())
+      throw physics::ConfigError("--pretrained " + p + ": expected LABEL=CHECKPOINT");
+    const std::string label = p.substr(0, eq);
+    for (char ch : label) {
+      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_'))
+        throw physics::ConfigError("--pretrained " + p +
+                                   ": the label may hold letters, digits, - and _ only");
+    }
+    for (const Condition& other : conditions) {
+      if (other.label == label)
+        throw physics::ConfigError("--pretrained: label '" + label + "' is used twice");
+    }
+    conditions.push_back(condition_of(label, p.substr(eq + 1), "--pretrained " + p));
   }
-  for (const Condition& c : conditions) s.conditions.push_back(c.label);
 
   ppo::TrainConfig base;
   base.model = opt.model;
@@ -371,6 +394,78 @@ int run_eval(const EvalOptions& opt) {
   if (opt.seeds < 1 || opt.seeds > 100) {
     throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
   }
+  // What a resumed evaluation must share with the one it continues: every run's training config but the
+  // scene, seed and checkpoint (the defaults of this version of hns eval included), and the random
+  // policy's episodes. Tasks, seeds and --pretrained conditions may be added; a resume that does not name
+  // a recorded task or condition runs it too.
+  ppo::TrainConfig shared = base;
+  shared.threads = 0;
+  shared.init_from = "(per condition)";
+  json settings = {{"model", opt.model},
+                   {"envs", opt.envs},
+                   {"iterations", opt.iterations},
+                   {"random_episodes", opt.random_episodes},
+                   {"sets", opt.sets},
+                   {"train_config", json::parse(shared.to_json())}};
+
+  const fs::path dir(opt.out);
+  const fs::path eval_json = dir / "eval.json";
+  std::error_code ec;
+  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
+    throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
+  if (fs::exists(eval_json, ec)) {
+    if (!opt.resume && !opt.overwrite) {
+      throw physics::ConfigError(
+          "--out " + opt.out +
+          " holds an evaluation (eval.json): --resume continues it, --overwrite starts over");
+    }
+    if (opt.resume) {
+      try {
+        std::ifstream in(eval_json);
+        const json saved = json::parse(in);
+        json old = saved.at("settings");
+        const json recorded = old.value("pretrained", json::object());
+        old.erase("pretrained");
+        if (old != settings) {
+          throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
+                                     " differ from these " + settings.dump());
+        }
+        for (const auto& [label, entry] : recorded.items()) {
+          auto given = std::find_if(conditions.begin(), conditions.end(),
+                                    [&](const Condition& c) { return c.label == label; });
+          const std::string path = entry.at("path").get<std::string>();
+          if (given == conditions.end()) {
+            conditions.push_back(
+                condition_of(label, path, "--resume " + opt.out + ": recorded condition " + label));
+            given = conditions.end() - 1;
+          } else if (given->checkpoint != path) {
+            throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " + path +
+                                       ", now " + given->checkpoint);
+          }
+          if (given->fingerprint != entry.at("fnv1a64").get<std::string>()) {
+            throw physics::ConfigError("--resume " + opt.out + ": the checkpoint of condition " + label +
+                                       " (" + path + ") changed since its first runs");
+          }
+        }
+        for (auto& [task, value] : saved.at("random").items()) {
+          s.random[task] = value.get<double>();
+          if (std::find(s.tasks.begin(), s.tasks.end(), task) == s.tasks.end()) s.tasks.push_back(task);
+        }
+        for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
+      } catch (const json::exception& e) {
+        throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
+      }
+    }
+  } else if (opt.resume) {
+    throw physics::ConfigError("--resume " + opt.out + ": no eval.json there");
+  }
+  for (const Condition& c : conditions) s.conditions.push_back(c.label);
+  json pretrained = json::object();
+  for (const Condition& c : conditions) {
+    if (!c.checkpoint.empty()) pretrained[c.label] = {{"path", c.checkpoint}, {"fnv1a64", c.fingerprint}};
+  }
+  settings["pretrained"] = pretrained;
+
   for (const std::string& t : s.tasks) {
     ppo::TrainConfig c = base;
     c.scene = t;
@@ -389,60 +484,6 @@ int run_eval(const EvalOptions& opt) {
                                    t + ": " + e.what());
       }
     }
-  }
-  json pretrained = json::object();
-  for (const Condition& c : conditions) {
-    if (!c.checkpoint.empty()) pretrained[c.label] = c.checkpoint;
-  }
-  // What a resumed evaluation must share with the one it continues (tasks, seeds and --pretrained conditions
-  // may be added).
-  json settings = {{"model", opt.model},
-                   {"envs", opt.envs},
-                   {"iterations", opt.iterations},
-                   {"random_episodes", opt.random_episodes},
-                   {"sets", opt.sets},
-                   {"pretrained", pretrained}};
-
-  const fs::path dir(opt.out);
-  const fs::path eval_json = dir / "eval.json";
-  std::error_code ec;
-  if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
-    throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
-  json saved;
-  if (fs::exists(eval_json, ec)) {
-    if (!opt.resume && !opt.overwrite) {
-      throw physics::ConfigError(
-          "--out " + opt.out +
-          " holds an evaluation (eval.json): --resume continues it, --overwrite starts over");
-    }
-    if (opt.resume) {
-      try {
-        std::ifstream in(eval_json);
-        saved = json::parse(in);
-        // Conditions may be added; a label keeps its checkpoint.
-        json old = saved.at("settings"), now = settings;
-        const json old_pretrained = old.value("pretrained", json::object());
-        old.erase("pretrained"), now.erase("pretrained");
-        if (old != now) {
-          throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
-                                     " differ from these " + now.dump());
-        }
-        for (const auto& [label, path] : old_pretrained.items()) {
-          if (pretrained.contains(label) && pretrained[label] != path) {
-            throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " +
-                                       path.get<std::string>() + ", now " +
-                                       pretrained[label].get<std::string>());
-          }
-          if (!pretrained.contains(label)) settings["pretrained"][label] = path;  // its runs stay recorded
-        }
-        for (auto& [task, value] : saved.at("random").items()) s.random[task] = value.get<double>();
-        for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
-      } catch (const json::exception& e) {
-        throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
-      }
-    }
-  } else if (opt.resume) {
-    throw physics::ConfigError("--resume " + opt.out + ": no eval.json there");
   }
   fs::create_directories(dir, ec);
   if (ec) throw physics::ConfigError("--out " + opt.out + ": cannot create the folder: " + ec.message());

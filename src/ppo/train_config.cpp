@@ -247,7 +247,9 @@ std::string TrainConfig::to_json() const {
     if (init_from.empty() && std::string_view(name).substr(0, 5) == "init_") return;
     // Likewise a run without an intrinsic reward writes none of its keys.
     const std::string_view n(name);
-    if (intrinsic == "none" && extrinsic_coef == 1.0 &&
+    const bool intrinsic_defaults =
+        intrinsic == "none" && count_state == "box_pos" && count_scale == 0.1 && extrinsic_coef == 1.0;
+    if (intrinsic_defaults &&
         (n == "intrinsic" || n == "count_state" || n == "count_scale" || n == "extrinsic_coef"))
       return;
     out += first ? "  " : ",\n  ";
@@ -286,16 +288,22 @@ void TrainConfig::merge_run_json(std::string_view text, const std::string& origi
 
 std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
   std::vector<std::string> mine, theirs;
-  visit_fields(*this, [&](const char*, const auto& field, bool identity) {
-    if (identity) mine.push_back(text_of(field));
+  // Without init_from the other init_* keys change nothing (and a run's files leave them out): not compared.
+  const bool no_init = init_from.empty() && other.init_from.empty();
+  auto compared = [no_init](const char* name, bool identity) {
+    const std::string_view n(name);
+    return identity && !(no_init && n.substr(0, 5) == "init_" && n != "init_from");
+  };
+  visit_fields(*this, [&](const char* name, const auto& field, bool identity) {
+    if (compared(name, identity)) mine.push_back(text_of(field));
   });
-  visit_fields(other, [&](const char*, const auto& field, bool identity) {
-    if (identity) theirs.push_back(text_of(field));
+  visit_fields(other, [&](const char* name, const auto& field, bool identity) {
+    if (compared(name, identity)) theirs.push_back(text_of(field));
   });
   size_t k = 0;
   std::string result;
   visit_fields(*this, [&](const char* name, const auto&, bool identity) {
-    if (!identity) return;
+    if (!compared(name, identity)) return;
     if (result.empty() && mine[k] != theirs[k]) {
       result = std::string(name) + ": checkpoint has " + mine[k] + ", this run has " + theirs[k];
     }
@@ -305,7 +313,8 @@ std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
 }
 
 int TrainConfig::update_blocks() const {
-  const int64_t chunks = buffer_chunks();
+  // The chunks of real agents (a transfer task's spoofed agent slot is no agent and leaves the update).
+  const int64_t chunks = int64_t(envs) * world().max_agents() * (rollout_steps() / bptt);
   const int64_t per_minibatch = chunks / std::max(1, minibatches_for(chunks));
   const int64_t fill = std::max<int64_t>(1, per_minibatch / nn::ParallelConfig{}.train_chunk_sequences);
   return int(std::min({int64_t(grad_groups), int64_t(envs), fill}));

@@ -4,6 +4,7 @@
 // slots that let a hide-and-seek policy act in them.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 #include <vector>
@@ -251,6 +252,24 @@ TEST(EpisodeStatistics, MaxAgentMoveIsTheDistanceFromTheSpawn) {
   for (int t = 0; t < 3; ++t) sim.step(idle);
   ASSERT_EQ(sim.finished().size(), 1u);
   EXPECT_NEAR(sim.finished()[0].max_agent_move, 2.0, 0.02);
+}
+
+// Shelter's cylinder over the whole of SPEC's uniform_placement_middle(0.7) range: its centre reaches
+// beyond 3.9 m (the range is 1.4 to 4.25 m) and below 1.7 m, on both axes.
+TEST(Shelter, CylinderCentresSpanTheMiddleRange) {
+  const physics::WorldConfig w = physics::world_preset("shelter");
+  double lo = 6, hi = 0;
+  for (int seed = 0; seed < 400; ++seed) {
+    physics::Rng rng(uint64_t(seed), 0, 0);
+    physics::Scene s;
+    physics::generate_scene(w.scene, rng, s);
+    ASSERT_TRUE(s.has_target);
+    for (double v : {s.target.x, s.target.y}) lo = std::min(lo, v), hi = std::max(hi, v);
+  }
+  EXPECT_GT(hi, 3.9);
+  EXPECT_LE(hi, 4.25 + 1e-9);
+  EXPECT_LT(lo, 1.7);
+  EXPECT_GE(lo, 1.4 - 1e-9);  // c = 9 from cell 3: 0.6 + 1.6 / 2
 }
 
 TEST(TransferTasks, PresetsValidateAndPlace) {

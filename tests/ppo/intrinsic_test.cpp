@@ -177,7 +177,7 @@ TEST(CountBased, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsCounts) {
 // A run without an intrinsic reward writes none of its keys (older versions read its files), and the config
 // of a run or checkpoint from before the keys existed reads as having none, whatever the reading run uses.
 TEST(CountBased, ConfigKeysStayOutOfRunsWithoutThem) {
-  TrainConfig plain = count_config();
+  TrainConfig plain = count_config("box_pos");
   plain.intrinsic = "none";
   EXPECT_EQ(plain.to_json().find("intrinsic"), std::string::npos);
   EXPECT_EQ(plain.to_json().find("count_state"), std::string::npos);
@@ -192,6 +192,15 @@ TEST(CountBased, ConfigKeysStayOutOfRunsWithoutThem) {
   back.merge_run_json(count_config().to_json(), "config.json");
   EXPECT_EQ(back.intrinsic, "count");
   EXPECT_EQ(back.count_state, "full");
+  // What a run writes, read back, is the same run (a resume compares them): with init_* keys that do not
+  // matter without init_from, and with intrinsic keys off their defaults while intrinsic is none.
+  TrainConfig odd = plain;
+  odd.init_heads = 0;
+  odd.count_state = "full";
+  TrainConfig read;
+  read.merge_run_json(odd.to_json(), "config.json");
+  EXPECT_EQ(odd.identity_mismatch(read), "");
+  EXPECT_EQ(read.count_state, "full");
 }
 
 TEST(CountBased, BadKeysAreRefused) {

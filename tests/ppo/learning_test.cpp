@@ -64,8 +64,8 @@ TEST(PpoLearning, LockAndReturnBeatsTheRandomPolicy) {
 
 // The intrinsic-motivation family: with the count-based reward alone on the boxes' positions (the paper's
 // best state representation) the agents learn to push the boxes around to reach unseen states: the boxes'
-// largest displacement per episode grows well beyond the initial policy's (0.18 m in the first iteration of a
-// 64-env run, 0.6 m by iteration 21 and 1.2 m by iteration 50).
+// largest displacement per episode grows well beyond the initial policy's (with this config: 0.23 m over the
+// first 3 iterations, 0.72 m over the last 5; the intrinsic return 2.20, then 3.14).
 TEST(PpoLearning, CountBasedAgentsLearnToMoveBoxes) {
   TrainConfig c;
   c.scene = "quadrant";

@@ -299,14 +299,17 @@ else
 fi
 
 # hns eval: a tiny suite (from scratch and from a lockbox checkpoint), its three outputs, --resume adding a
-# seed and keeping the finished runs, and the refusals (before any file is written).
+# seed and keeping the finished runs, a resume that does not name the recorded condition keeping it, and the
+# refusals (before any file is written).
+cp "$tmp/init-good.bin" "$tmp/lb.bin"
 if "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 1 --iterations 2 --envs 2 --random-episodes 4 \
-     --pretrained "lb=$tmp/init-good.bin" --threads 1 >"$tmp/log" 2>&1 &&
+     --pretrained "lb=$tmp/lb.bin" --threads 1 >"$tmp/log" 2>&1 &&
    [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 2 ] &&
    grep -q "| lockbox |" "$tmp/eval/eval.md" && grep -q "<svg" "$tmp/eval/eval.html" &&
    "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 2 --iterations 2 --envs 2 --random-episodes 4 \
-     --pretrained "lb=$tmp/init-good.bin" --threads 1 --resume >"$tmp/log2" 2>&1 &&
+     --threads 1 --resume >"$tmp/log2" 2>&1 &&
    [ "$(grep -c "iteration 2/2" "$tmp/log2")" -eq 2 ] && [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 4 ] &&
+   grep -q "lockbox / lb / seed 2" "$tmp/log2" && grep -q "lb normalised" "$tmp/eval/eval.md" &&
    grep -q '"seed": 2' "$tmp/eval/eval.json" && ! grep -q "random policy return" "$tmp/log2"; then
   passed=$((passed + 1))
 else
@@ -315,9 +318,11 @@ else
 fi
 expect_fail 2 "holds an evaluation" eval --out "$tmp/eval" --tasks lockbox --iterations 2
 expect_fail 2 "settings .* differ" eval --out "$tmp/eval" --tasks lockbox --iterations 3 --envs 2 --resume
-cp "$tmp/init-good.bin" "$tmp/init-other.bin"
-expect_fail 2 "pretrained lb was .*init-good.bin, now .*init-other.bin" eval --out "$tmp/eval" --tasks lockbox \
-  --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --pretrained "lb=$tmp/init-other.bin" --resume
+expect_fail 2 "pretrained lb was .*lb.bin, now .*init-good.bin" eval --out "$tmp/eval" --tasks lockbox \
+  --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --pretrained "lb=$tmp/init-good.bin" --resume
+cp "$tmp/run/checkpoint.bin" "$tmp/lb.bin"
+expect_fail 2 "condition lb .*changed since its first runs" eval --out "$tmp/eval" --tasks lockbox \
+  --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --resume
 expect_fail 2 "not a transfer task" eval --out "$tmp/eval-bad" --tasks quadrant
 expect_fail 2 "tasks: scene = 'moon'" eval --out "$tmp/eval-bad" --tasks moon
 expect_fail 2 "cannot start shelter: .*entity types" eval --out "$tmp/eval-bad" --tasks shelter \
