@@ -336,7 +336,7 @@ int run_eval(const EvalOptions& opt) {
   }
   // A --pretrained condition: a readable checkpoint of this evaluation's model, identified by its bytes.
   auto condition_of = [&](const std::string& label, const std::string& path, const std::string& flag) {
-    Condition c{label, path};
+    Condition c{label, path, ""};
     std::error_code ec;
     if (!fs::is_regular_file(c.checkpoint, ec))
       throw physics::ConfigError(flag + ": no such checkpoint file");
@@ -430,7 +430,9 @@ int run_eval(const EvalOptions& opt) {
           throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
                                      " differ from these " + settings.dump());
         }
-        for (const auto& [label, entry] : recorded.items()) {
+        for (const auto& item : recorded.items()) {
+          const std::string label = item.key();
+          const json& entry = item.value();
           auto given = std::find_if(conditions.begin(), conditions.end(),
                                     [&](const Condition& c) { return c.label == label; });
           const std::string path = entry.at("path").get<std::string>();
