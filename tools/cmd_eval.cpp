@@ -21,6 +21,7 @@
 
 #include "cli.hpp"
 #include "physics/presets.hpp"
+#include "ppo/atomic_file.hpp"
 #include "ppo/eval.hpp"
 #include "ppo/trainer.hpp"
 
@@ -57,14 +58,9 @@ struct Condition {
 // FNV-1a 64 of a file's bytes as 16 hex digits.
 std::string file_fingerprint(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
-  uint64_t h = 0xcbf29ce484222325ULL;
+  uint64_t h = ppo::kFnv1a64Basis;
   char buf[1 << 16];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
-    for (std::streamsize i = 0; i < in.gcount(); ++i) {
-      h ^= static_cast<unsigned char>(buf[i]);
-      h *= 0x100000001b3ULL;
-    }
-  }
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) h = ppo::fnv1a64(buf, size_t(in.gcount()), h);
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
   return hex;

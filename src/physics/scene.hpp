@@ -25,7 +25,8 @@ inline constexpr double kElongatedLong = 1.65;      // m
 inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
 inline constexpr double kTargetHeight = 0.5;        // m, the shelter task's cylinder
-inline constexpr int kQuadrantSize = 15;  // quadrant: q_size = int(0.5 * grid size), the room walls' row and column
+// Quadrant: q_size = int(0.5 * grid size), the room walls' row and column.
+inline constexpr int kQuadrantSize = 15;
 
 // Wall layout of a scene. kVarTri: three door-less rooms (SPEC §9.2 'var_tri', the sequential-lock task).
 enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls, kVarTri };
@@ -64,8 +65,8 @@ struct SceneConfig {
   // in the middle 70 % of the grid before the agents, seen by lidar and vision rays, not observed.
   double target_diameter_min = 0.0;
   double target_diameter_max = 0.0;
-  int max_tries_per_object = 10;        // rejection placement tries per object (SPEC §2.5)
-  int max_regenerations = 1000;         // whole-scene rebuilds before giving up with an error
+  int max_tries_per_object = 10;  // rejection placement tries per object (SPEC §2.5)
+  int max_regenerations = 1000;   // whole-scene rebuilds before giving up with an error
 
   static SceneConfig quadrant();
   static SceneConfig full();

@@ -5,6 +5,7 @@
 
 #include "physics/rng.hpp"
 #include "physics/scene.hpp"
+#include "ppo/atomic_file.hpp"
 
 namespace hns::ppo {
 
@@ -15,15 +16,6 @@ enum Kind { kAgents = 0, kLidarKind = 1, kBoxes = 2, kRamps = 3 };
 using Feature = CountHasher::Feature;
 constexpr Feature kX{0.0f, 6.0f}, kZ{0.0f, 2.0f}, kUnit{-1.0f, 1.0f}, kVel{-8.0f, 8.0f}, kSpin{-10.0f, 10.0f};
 constexpr Feature kFlag{0.0f, 1.0f}, kSize{0.0f, 2.0f}, kRange{0.0f, 6.0f};
-
-uint64_t fnv1a64(const uint8_t* p, size_t n) {
-  uint64_t h = 0xcbf29ce484222325ULL;
-  for (size_t i = 0; i < n; ++i) {
-    h ^= p[i];
-    h *= 0x100000001b3ULL;
-  }
-  return h;
-}
 
 }  // namespace
 
