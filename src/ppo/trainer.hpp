@@ -128,10 +128,11 @@ class Trainer {
   uint64_t fingerprint() const;
   // The config stored in a checkpoint (the file is checked as load() checks it).
   static TrainConfig checkpoint_config(const std::string& path);
-  // Starts this (new) run from a checkpoint of the same model whose scene has the same observation slots
+  // Starts this (new) run from a checkpoint of the same model whose scene has the same entity types
   // (config keys init_*): the policy's weights always; the value net's with init_value; the observation
   // normaliser (and, with the value net, the return normaliser) with init_normalizers; Adam's moments and
-  // step count with init_optimizer. Everything else (iteration, counters, episodes) starts fresh. Refuses
+  // step count with init_optimizer; each network's head (final layer norm, output layer) unless init_heads
+  // is 0. Everything else (iteration, counters, episodes) starts fresh. Refuses
   // (std::runtime_error with the reason) a damaged file or another network, leaving the trainer untouched.
   // Returns what it carried, for the progress line.
   std::string initialize_from(const std::string& path);
