@@ -41,11 +41,13 @@ constexpr const char* kObsFields[] = {
     "obs_self",         "lidar",      "obs_agents", "obs_boxes",         "obs_ramps",
     "mask_agents",      "mask_boxes", "mask_ramps", "value_mask_agents", "value_mask_boxes",
     "value_mask_ramps", "step_count", "episode"};
+// ... and, in scenes with construction sites (blueprint), these.
+constexpr const char* kSiteObsFields[] = {"obs_sites", "mask_sites", "value_mask_sites"};
 
 // Per-env dimensions of every batch field (BatchState, HNS_BATCH_FIELDS): a dimension of size 1 stays an
 // axis (lockbox's one agent still has an agent axis); per-env scalars have none.
 Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) {
-  const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others;
+  const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others, C = L.max_sites;
   const struct {
     const char* name;
     Shape dims;
@@ -71,6 +73,8 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"ramp_exists", {R}},
       {"ramp_locked", {R}},
       {"ramp_locker", {R}},
+      {"site_pos", {C, 3}},
+      {"site_exists", {C}},
       {"num_walls", {}},
       {"vis_agents", {A, A}},
       {"vis_boxes", {A, B}},
@@ -90,6 +94,7 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"task_dist", {}},
       {"task_spawn", {2}},
       {"task_locked", {B}},
+      {"task_complete", {}},
       {"obs_self", {A, batch::Layout::kSelfFeatures}},
       {"obs_agents", {A, O, batch::Layout::kAgentFeatures}},
       {"mask_agents", {A, O}},
@@ -100,6 +105,9 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"obs_ramps", {A, R, batch::Layout::kRampFeatures}},
       {"mask_ramps", {A, R}},
       {"value_mask_ramps", {A, R}},
+      {"obs_sites", {A, C, batch::Layout::kSiteFeatures}},
+      {"mask_sites", {A, C}},
+      {"value_mask_sites", {A, C}},
   };
   Shape dims;
   bool found = false;
@@ -280,6 +288,8 @@ class BatchEnv {
     HNS_BATCH_FIELDS(HNS_VIEW_FIELD)
 #undef HNS_VIEW_FIELD
     for (const char* name : kObsFields) obs_[name] = fields_[name];
+    if (L.max_sites > 0)
+      for (const char* name : kSiteObsFields) obs_[name] = fields_[name];
     truncated_ = make_view(s.done.data(), Shape{E}, owner_, /*as_bool=*/true);
     terminated_view_ = make_view(keep->zeros.data(), Shape{E}, owner_, /*as_bool=*/true);
   }
@@ -432,6 +442,7 @@ class BatchEnv {
     d["agents"] = spawns(sc.agents);
     d["boxes"] = spawns(sc.boxes);
     d["ramps"] = spawns(sc.ramps);
+    d["sites"] = spawns(sc.sites);  // blueprint's construction sites: centre, then 0.5 x 0.5 x 0
     return d;
   }
 
@@ -531,7 +542,8 @@ class Policy {
   py::tuple act(const py::dict& obs, const py::handle& state_in) {
     BusyGuard busy(busy_, "Policy.act");
     const nn::ObsShape& S = policy_->obs_shape();
-    const py::ssize_t A = S.max_agents, O = S.num_other_agents(), B = S.max_boxes, R = S.max_ramps;
+    const py::ssize_t A = S.max_agents, O = S.num_other_agents(), B = S.max_boxes, R = S.max_ramps,
+                      C = S.max_sites;
     auto get = [&](const char* key) {
       if (!obs.contains(key)) raise(PyExc_KeyError, std::string("obs['") + key + "'] is missing");
       return as_array(obs[key], std::string("obs['") + key + "']");
@@ -580,6 +592,11 @@ class Policy {
     v.value_mask_agents = bytes("value_mask_agents", O);
     v.value_mask_boxes = bytes("value_mask_boxes", B);
     v.value_mask_ramps = bytes("value_mask_ramps", R);
+    if (C > 0) {  // scenes with construction sites only
+      v.sites = floats("obs_sites", {C, S.site_features});
+      v.mask_sites = bytes("mask_sites", C);
+      v.value_mask_sites = bytes("value_mask_sites", C);
+    }
     v.step_count = counters("step_count");
     v.episode = counters("episode");
 
@@ -662,6 +679,10 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   for (size_t i = 0; i < ep.cylinders.size(); ++i)
     for (int k = 0; k < 4; ++k) cylinders.mutable_at(py::ssize_t(i), k) = ep.cylinders[i][size_t(k)];
   d["cylinders"] = cylinders;
+  py::array_t<double> sites(Shape{py::ssize_t(ep.sites.size()), 3});
+  for (size_t i = 0; i < ep.sites.size(); ++i)
+    for (int k = 0; k < 3; ++k) sites.mutable_at(py::ssize_t(i), k) = ep.sites[i][size_t(k)];
+  d["sites"] = sites;
   py::array_t<double> sizes(Shape{py::ssize_t(ep.box_sizes.size()), 3});
   for (size_t i = 0; i < ep.box_sizes.size(); ++i)
     for (int k = 0; k < 3; ++k) sizes.mutable_at(py::ssize_t(i), k) = ep.box_sizes[i][size_t(k)];
@@ -840,6 +861,7 @@ reset(). Pass copy=True for arrays of your own.)doc")
       .def_property_readonly("max_agents", [](const BatchEnv& e) { return e.layout().max_agents; })
       .def_property_readonly("max_boxes", [](const BatchEnv& e) { return e.layout().max_boxes; })
       .def_property_readonly("max_ramps", [](const BatchEnv& e) { return e.layout().max_ramps; })
+      .def_property_readonly("max_sites", [](const BatchEnv& e) { return e.layout().max_sites; })
       .def_property_readonly("horizon", [](const BatchEnv& e) { return e.config().world.horizon; })
       .def_property_readonly("prep_steps", [](const BatchEnv& e) { return e.config().world.prep_steps(); })
       .def_property_readonly("threads", [](const BatchEnv& e) { return e.config().threads; })

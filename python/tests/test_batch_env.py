@@ -32,13 +32,25 @@ def random_actions(rng, env):
     return a
 
 
-@pytest.mark.parametrize("scene", ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter"])
+SITE_OBS_FIELDS = {
+    "obs_sites": (np.float32, ("A", "C", 15)),
+    "mask_sites": (np.uint8, ("A", "C")),
+    "value_mask_sites": (np.uint8, ("A", "C")),
+}
+
+
+@pytest.mark.parametrize(
+    "scene", ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter", "blueprint"])
 def test_shapes_and_dtypes(scene):
     env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
-    sizes = {"A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes, "R": env.max_ramps}
+    sizes = {"A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes, "R": env.max_ramps,
+             "C": env.max_sites}
     obs, info = env.reset()
-    assert set(obs) == set(OBS_FIELDS)
-    for name, (dtype, dims) in OBS_FIELDS.items():
+    # Construction sites (blueprint's fourth entity type) are observed only in the scenes that have them.
+    fields = dict(OBS_FIELDS, **SITE_OBS_FIELDS) if scene == "blueprint" else OBS_FIELDS
+    assert env.max_sites == (4 if scene == "blueprint" else 0)
+    assert set(obs) == set(fields)
+    for name, (dtype, dims) in fields.items():
         assert obs[name].dtype == dtype, name
         assert obs[name].shape == (3,) + tuple(sizes.get(d, d) for d in dims), name
         assert obs[name].flags.c_contiguous and not obs[name].flags.writeable, name
@@ -61,6 +73,15 @@ def test_shapes_and_dtypes(scene):
     assert scene_info["cylinders"].shape == ((1, 4) if scene == "shelter" else (0, 4))
     if scene == "shelter":
         assert state["shape_cyl_r"].shape == (3, 1) and 0.75 <= state["shape_cyl_r"][0, 0] <= 1.0
+    # Blueprint's construction sites: centres and extents in the scene, the same centres in the state.
+    assert scene_info["sites"].shape[1] == 6
+    if scene == "blueprint":
+        n = scene_info["sites"].shape[0]
+        assert 1 <= n <= 4 and state["site_exists"][0].sum() == n
+        np.testing.assert_allclose(state["site_pos"][0, :n], scene_info["sites"][:, :3], atol=1e-6)
+        assert state["task_complete"].shape == (3,)
+    else:
+        assert scene_info["sites"].shape[0] == 0
 
 
 def test_views_are_the_batch_buffers_without_copies():

@@ -5,15 +5,29 @@ import pytest
 import hns
 
 
-def test_policy_actions_equal_hns_play(run_cli, checkpoint, tmp_path):
+@pytest.fixture(scope="session")
+def blueprint_checkpoint(run_cli, tmp_path_factory):
+    """A one-iteration blueprint checkpoint: its network has the construction sites' embedding."""
+    out = tmp_path_factory.mktemp("run") / "blueprint"
+    run_cli("train", "--scene", "blueprint", "--model", "small", "--iterations", 1, "--envs", 2, "--threads", 1,
+            "--seed", 3, "--set", "horizon=30", "--out", out)
+    return out / "checkpoint.bin"
+
+
+@pytest.mark.parametrize("scene", ["quadrant", "blueprint"])
+def test_policy_actions_equal_hns_play(run_cli, checkpoint, blueprint_checkpoint, tmp_path, scene):
+    checkpoint = checkpoint if scene == "quadrant" else blueprint_checkpoint
     envs, episodes, seed = 2, 4, 5  # two episodes per env: the LSTM state is carried and reset at episode starts
     path = tmp_path / "play.traj"
     run_cli("play", "--checkpoint", checkpoint, "--episodes", episodes, "--envs", envs, "--seed", seed, "--out", path)
-    recorded = {(ep["env"], ep["episode"]): ep for ep in hns.read_trajectory(str(path))["episodes"]}
+    trajectory = hns.read_trajectory(str(path))
+    recorded = {(ep["env"], ep["episode"]): ep for ep in trajectory["episodes"]}
     assert sorted(recorded) == [(0, 0), (0, 1), (1, 0), (1, 1)]
+    if scene == "blueprint":  # the sites are recorded for the replay page
+        assert all(1 <= ep["sites"].shape[0] <= 4 for ep in trajectory["episodes"])
 
     policy = hns.Policy.load(str(checkpoint), seed=seed)
-    assert policy.scene == "quadrant" and policy.model == "small"
+    assert policy.scene == scene and policy.model == "small"
     env = policy.make_env(num_envs=envs, threads=1, seed=seed)
     obs, _ = env.reset()
     state = policy.initial_state(envs)

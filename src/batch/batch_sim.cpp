@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -101,6 +102,7 @@ Layout Layout::of(const BatchConfig& config) {
   L.max_agents = config.world.agent_slots();
   L.max_boxes = scene.boxes.max;
   L.max_ramps = std::max(scene.ramps.max, config.world.obs_min_ramps);
+  L.max_sites = scene.sites.max;
   L.max_walls = ::hns::batch::max_walls(scene);
   L.others = std::max(0, L.max_agents - 1);
   L.shape_boxes = L.max_walls + L.max_boxes;
@@ -311,6 +313,19 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
     state_.shape_box_c[sb + w] = 1.0f;
     state_.shape_box_s[sb + w] = 0.0f;
   }
+  const int nc = int(scene.sites.size());
+  if (nc > layout_.max_sites) {
+    throw std::logic_error("scene has " + std::to_string(nc) + " construction sites, layout allows " +
+                           std::to_string(layout_.max_sites));
+  }
+  for (int c = 0; c < layout_.max_sites; ++c) {
+    float* p = state_.site_pos.data() + (size_t(env) * layout_.max_sites + c) * 3;
+    p[0] = c < nc ? float(scene.sites[c].x) : 0.0f;
+    p[1] = c < nc ? float(scene.sites[c].y) : 0.0f;
+    p[2] = c < nc ? float(scene.sites[c].z) : 0.0f;
+    state_.site_exists[size_t(env) * layout_.max_sites + c] = c < nc ? 1 : 0;
+  }
+  state_.task_complete[env] = 0;
   if (layout_.shape_cylinders > 0) {
     const physics::Spawn& t = scene.target;
     state_.shape_cyl_cx[env] = scene.has_target ? float(t.x) : 0.0f;
@@ -627,13 +642,20 @@ void BatchSim::rewards_env(int env) {
   const bool prep = t <= wc.prep_steps();
   float* reward = s.reward.data() + size_t(env) * L.max_agents;
   if (wc.is_transfer_task()) {
-    if (wc.is_lock_task()) {
+    // A completed blueprint absorbs the rest of its episode: reward 0, whatever happens (the trainer leaves
+    // those steps out).
+    const bool absorbed = s.task_complete[env] != 0;
+    if (absorbed) {
+      std::fill_n(reward, L.max_agents, 0.0f);
+    } else if (wc.is_lock_task()) {
       lockbox_rewards_env(env, reward);
+    } else if (wc.task == physics::WorldConfig::Task::kBlueprint) {
+      blueprint_rewards_env(env, reward);
     } else {
       shelter_rewards_env(env, reward);
     }
     for (int a = 0; a < L.max_agents; ++a) {
-      if (a < n && outside(pos + 3 * a)) reward[a] = kOutOfBoundsReward;
+      if (!absorbed && a < n && outside(pos + 3 * a)) reward[a] = kOutOfBoundsReward;
       if (a >= n) reward[a] = 0.0f;
     }
     s.episode_return[size_t(env) * 2] += reward[0];
@@ -710,6 +732,78 @@ void BatchSim::shelter_rewards_env(int env, float* reward) {
 }
 
 // The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
+// Blueprint construction (SPEC §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2,
+// 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners are
+// (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box corner
+// of the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean. Completion:
+// every site has a box centre within 0.1 m of its centre and every site corner a box corner within 0.1 m;
+// it pays 3 per site (on top of that step's dense reward) and sets task_complete.
+constexpr double kBlueprintAlpha = -1.5;
+constexpr double kBlueprintDenseScale = 0.05;
+constexpr double kBlueprintRadius = 0.1;      // m
+constexpr double kBlueprintSiteReward = 3.0;  // per site, on completion
+
+void BatchSim::blueprint_rewards_env(int env, float* reward) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const int nb = worlds_[env]->num_boxes();
+  const size_t eb = size_t(env) * L.max_boxes, ec = size_t(env) * L.max_sites;
+  constexpr double kSigns[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+  auto box_corner = [&](int b, int k, double* out) {
+    const float* p = s.box_pos.data() + (eb + b) * 3;
+    const float* r = s.box_rot.data() + (eb + b) * 2;
+    const float* sz = s.box_size.data() + (eb + b) * 3;
+    const double lx = kSigns[k][0] * 0.5 * sz[0], ly = kSigns[k][1] * 0.5 * sz[1];
+    out[0] = p[0] + r[0] * lx - r[1] * ly;
+    out[1] = p[1] + r[1] * lx + r[0] * ly;
+    out[2] = p[2];
+  };
+  auto dist = [](const double* a, const double* b) {
+    return std::sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                     (a[2] - b[2]) * (a[2] - b[2]));
+  };
+  double smooth_sum = 0.0;
+  int site_corners = 0, sites = 0;
+  bool complete = nb > 0;
+  for (int c = 0; c < L.max_sites; ++c) {
+    if (s.site_exists[ec + c] == 0) continue;
+    ++sites;
+    const float* sp = s.site_pos.data() + (ec + c) * 3;
+    const double centre[3] = {sp[0], sp[1], sp[2]};
+    double nearest_centre = std::numeric_limits<double>::infinity();
+    for (int b = 0; b < nb; ++b) {
+      const float* p = s.box_pos.data() + (eb + b) * 3;
+      const double box[3] = {p[0], p[1], p[2]};
+      nearest_centre = std::min(nearest_centre, dist(centre, box));
+    }
+    complete = complete && nearest_centre < kBlueprintRadius;
+    for (int k = 0; k < 4; ++k) {
+      const double corner[3] = {centre[0] + kSigns[k][0] * 0.5 * physics::kSiteSize,
+                                centre[1] + kSigns[k][1] * 0.5 * physics::kSiteSize, centre[2]};
+      double num = 0.0, den = 0.0, nearest = std::numeric_limits<double>::infinity();
+      for (int b = 0; b < nb; ++b) {
+        for (int q = 0; q < 4; ++q) {
+          double bc[3];
+          box_corner(b, q, bc);
+          const double d = dist(corner, bc), w = std::exp(kBlueprintAlpha * d);
+          num += d * w;
+          den += w;
+          nearest = std::min(nearest, d);
+        }
+      }
+      smooth_sum += den > 0.0 ? num / den : 0.0;
+      ++site_corners;
+      complete = complete && nearest < kBlueprintRadius;
+    }
+  }
+  double r = site_corners > 0 ? -kBlueprintDenseScale * smooth_sum / site_corners : 0.0;
+  if (complete && sites > 0) {
+    r += kBlueprintSiteReward * sites;
+    s.task_complete[env] = 1;
+  }
+  std::fill_n(reward, L.max_agents, float(r));
+}
+
 // in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
 // (kTargetNone). task_dist: the 2-D distance to it.
 void BatchSim::lockbox_retarget(int env) {
@@ -956,6 +1050,10 @@ void BatchSim::observe_env(int env) {
   float* obs_ramps = s.obs_ramps.data() + ea * R * Layout::kRampFeatures;
   uint8_t* mask_ramps = s.mask_ramps.data() + ea * R;
   uint8_t* value_mask_ramps = s.value_mask_ramps.data() + ea * R;
+  const int C = L.max_sites;
+  float* obs_sites = s.obs_sites.data() + ea * C * Layout::kSiteFeatures;
+  uint8_t* mask_sites = s.mask_sites.data() + ea * C;
+  uint8_t* value_mask_sites = s.value_mask_sites.data() + ea * C;
   std::fill_n(obs_self, size_t(A) * Layout::kSelfFeatures, 0.0f);
   std::fill_n(obs_agents, size_t(A) * O * Layout::kAgentFeatures, 0.0f);
   std::fill_n(mask_agents, size_t(A) * O, 0);
@@ -966,6 +1064,9 @@ void BatchSim::observe_env(int env) {
   std::fill_n(obs_ramps, size_t(A) * R * Layout::kRampFeatures, 0.0f);
   std::fill_n(mask_ramps, size_t(A) * R, 0);
   std::fill_n(value_mask_ramps, size_t(A) * R, 0);
+  std::fill_n(obs_sites, size_t(A) * C * Layout::kSiteFeatures, 0.0f);
+  std::fill_n(mask_sites, size_t(A) * C, 0);
+  std::fill_n(value_mask_sites, size_t(A) * C, 0);
 
   const float prep_obs = prep_observation(s.step_count[env], config_.world.prep_steps());
   const float* pos = s.agent_pos.data() + ea * 3;
@@ -1022,6 +1123,23 @@ void BatchSim::observe_env(int env) {
       lock_features(s.ramp_locked[i] != 0, s.ramp_locker[i], a, out + 9);
       mask_ramps[a * R + r] = vis_ramps[a * R + r];
       value_mask_ramps[a * R + r] = 1;
+    }
+    // Construction sites (SPEC §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always visible.
+    for (int c = 0; c < C; ++c) {
+      const size_t i = size_t(env) * C + c;
+      if (s.site_exists[i] == 0) continue;
+      float* out = obs_sites + (size_t(a) * C + c) * Layout::kSiteFeatures;
+      const float* p = s.site_pos.data() + 3 * i;
+      std::copy_n(p, 3, out);
+      constexpr float kHalf = float(0.5 * physics::kSiteSize);
+      constexpr float kSigns[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
+      for (int k = 0; k < 4; ++k) {
+        out[3 + 3 * k] = p[0] + kSigns[k][0] * kHalf;
+        out[4 + 3 * k] = p[1] + kSigns[k][1] * kHalf;
+        out[5 + 3 * k] = p[2];
+      }
+      mask_sites[a * C + c] = 1;
+      value_mask_sites[a * C + c] = 1;
     }
   }
 }

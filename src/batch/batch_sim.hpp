@@ -68,6 +68,7 @@ struct Layout {
   int max_agents = 0;                        // A
   int max_boxes = 0;                         // B
   int max_ramps = 0;                         // R
+  int max_sites = 0;                         // C: blueprint's construction sites (0 in other scenes)
   int max_walls = 0;                         // walls a scene may have
   int others = 0;                            // A - 1 other-agent slots
   int shape_boxes = 0;                       // ray-cast shape slots: walls + boxes
@@ -78,6 +79,7 @@ struct Layout {
   static constexpr int kAgentFeatures = 11;  // the same for another agent
   static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
+  static constexpr int kSiteFeatures = 15;   // centre 3, then 4 corners x 3 (SPEC §9.1)
   static constexpr int kLidar = 30;
   static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
   static constexpr int kPrepStats = kNumPrepStats;
@@ -91,86 +93,92 @@ struct Layout {
 
 // Every per-env field of the batch: X(type, name, elements per env, doc). Env index outermost; one
 // aligned buffer per field; slots beyond an episode's counts are zero and masked out.
-#define HNS_BATCH_FIELDS(X)                                                                                \
-  /* Bodies, true centres (SPEC §14.1). */                                                                \
-  X(float, agent_pos, L.max_agents * 3, "agent centre, m (envs x A x 3)")                                  \
-  X(float, agent_rot, L.max_agents * 2, "agent yaw as (cos, sin) (envs x A x 2)")                          \
-  X(float, agent_vel, L.max_agents * 3, "agent velocity, m/s (envs x A x 3)")                              \
-  X(float, agent_angvel, L.max_agents, "agent angular velocity about z, rad/s (envs x A)")                 \
-  X(uint8_t, agent_exists, L.max_agents, "1 if the slot holds an agent this episode (envs x A)")           \
-  X(uint8_t, agent_hider, L.max_agents, "1 for hiders, 0 for seekers (envs x A)")                          \
-  X(float, box_pos, L.max_boxes * 3, "box centre, m (envs x B x 3)")                                       \
-  X(float, box_rot, L.max_boxes * 2, "box yaw as (cos, sin) (envs x B x 2)")                               \
-  X(float, box_vel, L.max_boxes * 3, "box velocity, m/s (envs x B x 3)")                                   \
-  X(float, box_angvel, L.max_boxes, "box angular velocity, rad/s (envs x B)")                              \
-  X(float, box_size, L.max_boxes * 3, "box full extents, m (envs x B x 3)")                                \
-  X(uint8_t, box_exists, L.max_boxes, "1 if the box slot is used (envs x B)")                              \
-  X(uint8_t, box_locked, L.max_boxes, "1 if pinned (envs x B)")                                            \
-  X(int8_t, box_locker, L.max_boxes, "agent that locked it last, -1 never (envs x B)")                     \
-  X(float, ramp_pos, L.max_ramps * 3, "ramp bounding-box centre, m (envs x R x 3)")                        \
-  X(float, ramp_rot, L.max_ramps * 2, "ramp yaw as (cos, sin) (envs x R x 2)")                             \
-  X(float, ramp_vel, L.max_ramps * 3, "ramp velocity, m/s (envs x R x 3)")                                 \
-  X(float, ramp_angvel, L.max_ramps, "ramp angular velocity, rad/s (envs x R)")                            \
-  X(uint8_t, ramp_exists, L.max_ramps, "1 if the ramp slot is used (envs x R)")                            \
-  X(uint8_t, ramp_locked, L.max_ramps, "1 if pinned (envs x R)")                                           \
-  X(int8_t, ramp_locker, L.max_ramps, "agent that locked it last, -1 never (envs x R)")                    \
-  /* Shapes for ray casts: walls then boxes, ramps, agents; padding parked below the floor. */             \
-  X(float, shape_box_cx, L.shape_boxes, "box-shaped occluder centre x, m (envs x SB)")                     \
-  X(float, shape_box_cy, L.shape_boxes, "centre y, m")                                                     \
-  X(float, shape_box_cz, L.shape_boxes, "centre z, m")                                                     \
-  X(float, shape_box_hx, L.shape_boxes, "half extent x, m")                                                \
-  X(float, shape_box_hy, L.shape_boxes, "half extent y, m")                                                \
-  X(float, shape_box_hz, L.shape_boxes, "half extent z, m")                                                \
-  X(float, shape_box_c, L.shape_boxes, "cos yaw")                                                          \
-  X(float, shape_box_s, L.shape_boxes, "sin yaw")                                                          \
-  X(float, shape_wedge_cx, L.shape_wedges, "ramp occluder centre x, m (envs x SW)")                        \
-  X(float, shape_wedge_cy, L.shape_wedges, "centre y, m")                                                  \
-  X(float, shape_wedge_cz, L.shape_wedges, "centre z, m")                                                  \
-  X(float, shape_wedge_c, L.shape_wedges, "cos yaw")                                                       \
-  X(float, shape_wedge_s, L.shape_wedges, "sin yaw")                                                       \
-  X(float, shape_sphere_cx, L.shape_spheres, "agent body, arm, arm centre x, m (envs x SS = A x 3)")       \
-  X(float, shape_sphere_cy, L.shape_spheres, "centre y, m")                                                \
-  X(float, shape_sphere_cz, L.shape_spheres, "centre z, m")                                                \
-  X(float, shape_sphere_r, L.shape_spheres, "radius, m")                                                   \
-  X(float, shape_cyl_cx, L.shape_cylinders, "shelter cylinder's axis x, m (envs x SC, SC = 0 or 1)")       \
-  X(float, shape_cyl_cy, L.shape_cylinders, "axis y, m")                                                   \
-  X(float, shape_cyl_r, L.shape_cylinders, "radius, m")                                                    \
-  X(float, shape_cyl_h, L.shape_cylinders, "height, m (it stands on the floor)")                           \
-  X(int32_t, num_walls, 1, "walls of this episode's scene (envs)")                                         \
-  /* Perception (SPEC §4.1, §4.2). */                                                                    \
-  X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")    \
-  X(uint8_t, vis_boxes, L.max_agents* L.max_boxes, "agent sees box (envs x A x B)")                        \
-  X(uint8_t, vis_ramps, L.max_agents* L.max_ramps, "agent sees ramp (envs x A x R)")                       \
-  X(float, lidar, L.max_agents* Layout::kLidar, "lidar distance, m, 6 = nothing (envs x A x 30)")          \
-  /* Step outputs (SPEC §5). */                                                                           \
-  X(float, reward, L.max_agents, "reward of the last step (envs x A)")                                     \
-  X(uint8_t, done, 1, "1 if the last step ended the episode; the obs is then the new episode's first")     \
-  X(int32_t, step_count, 1, "env steps taken in the current episode (envs)")                               \
-  X(int32_t, episode, 1, "episode number of the env (envs)")                                               \
-  /* Episode statistics (SPEC §7). */                                                                     \
-  X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                        \
-  X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                   \
-  X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                      \
-  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")            \
-  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")    \
-  X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")        \
-  /* Box-locking tasks (WorldConfig::is_lock_task(), SPEC §9.2). */                                       \
-  X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")      \
-  X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                \
-  X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")    \
-  X(uint8_t, task_locked, L.max_boxes, "box locked at the last step (envs x B)")                           \
-  /* Observations per agent (SPEC §4.3-§4.6 with §14.1). */                                             \
-  X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                  \
-  X(float, obs_agents, L.max_agents* L.others* Layout::kAgentFeatures,                                     \
-    "other agents in circulant order (envs x A x A-1 x 11)")                                               \
-  X(uint8_t, mask_agents, L.max_agents* L.others, "policy mask: other agent seen (envs x A x A-1)")        \
-  X(uint8_t, value_mask_agents, L.max_agents* L.others, "value mask: other agent exists (envs x A x A-1)") \
-  X(float, obs_boxes, L.max_agents* L.max_boxes* Layout::kBoxFeatures, "boxes (envs x A x B x 15)")        \
-  X(uint8_t, mask_boxes, L.max_agents* L.max_boxes, "policy mask: box seen (envs x A x B)")                \
-  X(uint8_t, value_mask_boxes, L.max_agents* L.max_boxes, "value mask: box exists (envs x A x B)")         \
-  X(float, obs_ramps, L.max_agents* L.max_ramps* Layout::kRampFeatures, "ramps (envs x A x R x 12)")       \
-  X(uint8_t, mask_ramps, L.max_agents* L.max_ramps, "policy mask: ramp seen (envs x A x R)")               \
-  X(uint8_t, value_mask_ramps, L.max_agents* L.max_ramps, "value mask: ramp exists (envs x A x R)")
+#define HNS_BATCH_FIELDS(X)                                                                                 \
+  /* Bodies, true centres (SPEC §14.1). */                                                                 \
+  X(float, agent_pos, L.max_agents * 3, "agent centre, m (envs x A x 3)")                                   \
+  X(float, agent_rot, L.max_agents * 2, "agent yaw as (cos, sin) (envs x A x 2)")                           \
+  X(float, agent_vel, L.max_agents * 3, "agent velocity, m/s (envs x A x 3)")                               \
+  X(float, agent_angvel, L.max_agents, "agent angular velocity about z, rad/s (envs x A)")                  \
+  X(uint8_t, agent_exists, L.max_agents, "1 if the slot holds an agent this episode (envs x A)")            \
+  X(uint8_t, agent_hider, L.max_agents, "1 for hiders, 0 for seekers (envs x A)")                           \
+  X(float, box_pos, L.max_boxes * 3, "box centre, m (envs x B x 3)")                                        \
+  X(float, box_rot, L.max_boxes * 2, "box yaw as (cos, sin) (envs x B x 2)")                                \
+  X(float, box_vel, L.max_boxes * 3, "box velocity, m/s (envs x B x 3)")                                    \
+  X(float, box_angvel, L.max_boxes, "box angular velocity, rad/s (envs x B)")                               \
+  X(float, box_size, L.max_boxes * 3, "box full extents, m (envs x B x 3)")                                 \
+  X(uint8_t, box_exists, L.max_boxes, "1 if the box slot is used (envs x B)")                               \
+  X(uint8_t, box_locked, L.max_boxes, "1 if pinned (envs x B)")                                             \
+  X(int8_t, box_locker, L.max_boxes, "agent that locked it last, -1 never (envs x B)")                      \
+  X(float, ramp_pos, L.max_ramps * 3, "ramp bounding-box centre, m (envs x R x 3)")                         \
+  X(float, ramp_rot, L.max_ramps * 2, "ramp yaw as (cos, sin) (envs x R x 2)")                              \
+  X(float, ramp_vel, L.max_ramps * 3, "ramp velocity, m/s (envs x R x 3)")                                  \
+  X(float, ramp_angvel, L.max_ramps, "ramp angular velocity, rad/s (envs x R)")                             \
+  X(uint8_t, ramp_exists, L.max_ramps, "1 if the ramp slot is used (envs x R)")                             \
+  X(uint8_t, ramp_locked, L.max_ramps, "1 if pinned (envs x R)")                                            \
+  X(int8_t, ramp_locker, L.max_ramps, "agent that locked it last, -1 never (envs x R)")                     \
+  X(float, site_pos, L.max_sites * 3, "construction site centre, m (envs x C x 3)")                         \
+  X(uint8_t, site_exists, L.max_sites, "1 if the site slot is used (envs x C)")                             \
+  /* Shapes for ray casts: walls then boxes, ramps, agents; padding parked below the floor. */              \
+  X(float, shape_box_cx, L.shape_boxes, "box-shaped occluder centre x, m (envs x SB)")                      \
+  X(float, shape_box_cy, L.shape_boxes, "centre y, m")                                                      \
+  X(float, shape_box_cz, L.shape_boxes, "centre z, m")                                                      \
+  X(float, shape_box_hx, L.shape_boxes, "half extent x, m")                                                 \
+  X(float, shape_box_hy, L.shape_boxes, "half extent y, m")                                                 \
+  X(float, shape_box_hz, L.shape_boxes, "half extent z, m")                                                 \
+  X(float, shape_box_c, L.shape_boxes, "cos yaw")                                                           \
+  X(float, shape_box_s, L.shape_boxes, "sin yaw")                                                           \
+  X(float, shape_wedge_cx, L.shape_wedges, "ramp occluder centre x, m (envs x SW)")                         \
+  X(float, shape_wedge_cy, L.shape_wedges, "centre y, m")                                                   \
+  X(float, shape_wedge_cz, L.shape_wedges, "centre z, m")                                                   \
+  X(float, shape_wedge_c, L.shape_wedges, "cos yaw")                                                        \
+  X(float, shape_wedge_s, L.shape_wedges, "sin yaw")                                                        \
+  X(float, shape_sphere_cx, L.shape_spheres, "agent body, arm, arm centre x, m (envs x SS = A x 3)")        \
+  X(float, shape_sphere_cy, L.shape_spheres, "centre y, m")                                                 \
+  X(float, shape_sphere_cz, L.shape_spheres, "centre z, m")                                                 \
+  X(float, shape_sphere_r, L.shape_spheres, "radius, m")                                                    \
+  X(float, shape_cyl_cx, L.shape_cylinders, "shelter cylinder's axis x, m (envs x SC, SC = 0 or 1)")        \
+  X(float, shape_cyl_cy, L.shape_cylinders, "axis y, m")                                                    \
+  X(float, shape_cyl_r, L.shape_cylinders, "radius, m")                                                     \
+  X(float, shape_cyl_h, L.shape_cylinders, "height, m (it stands on the floor)")                            \
+  X(int32_t, num_walls, 1, "walls of this episode's scene (envs)")                                          \
+  /* Perception (SPEC §4.1, §4.2). */                                                                     \
+  X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")     \
+  X(uint8_t, vis_boxes, L.max_agents* L.max_boxes, "agent sees box (envs x A x B)")                         \
+  X(uint8_t, vis_ramps, L.max_agents* L.max_ramps, "agent sees ramp (envs x A x R)")                        \
+  X(float, lidar, L.max_agents* Layout::kLidar, "lidar distance, m, 6 = nothing (envs x A x 30)")           \
+  /* Step outputs (SPEC §5). */                                                                            \
+  X(float, reward, L.max_agents, "reward of the last step (envs x A)")                                      \
+  X(uint8_t, done, 1, "1 if the last step ended the episode; the obs is then the new episode's first")      \
+  X(int32_t, step_count, 1, "env steps taken in the current episode (envs)")                                \
+  X(int32_t, episode, 1, "episode number of the env (envs)")                                                \
+  /* Episode statistics (SPEC §7). */                                                                      \
+  X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                         \
+  X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
+  X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
+  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")             \
+  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")     \
+  X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
+  /* Box-locking tasks (WorldConfig::is_lock_task(), SPEC §9.2). */                                        \
+  X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
+  X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                 \
+  X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")     \
+  X(uint8_t, task_locked, L.max_boxes, "box locked at the last step (envs x B)")                            \
+  X(uint8_t, task_complete, 1, "blueprint: 1 from the completing step on; later steps are absorbed (envs)") \
+  /* Observations per agent (SPEC §4.3-§4.6 with §14.1). */                                              \
+  X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                   \
+  X(float, obs_agents, L.max_agents* L.others* Layout::kAgentFeatures,                                      \
+    "other agents in circulant order (envs x A x A-1 x 11)")                                                \
+  X(uint8_t, mask_agents, L.max_agents* L.others, "policy mask: other agent seen (envs x A x A-1)")         \
+  X(uint8_t, value_mask_agents, L.max_agents* L.others, "value mask: other agent exists (envs x A x A-1)")  \
+  X(float, obs_boxes, L.max_agents* L.max_boxes* Layout::kBoxFeatures, "boxes (envs x A x B x 15)")         \
+  X(uint8_t, mask_boxes, L.max_agents* L.max_boxes, "policy mask: box seen (envs x A x B)")                 \
+  X(uint8_t, value_mask_boxes, L.max_agents* L.max_boxes, "value mask: box exists (envs x A x B)")          \
+  X(float, obs_ramps, L.max_agents* L.max_ramps* Layout::kRampFeatures, "ramps (envs x A x R x 12)")        \
+  X(uint8_t, mask_ramps, L.max_agents* L.max_ramps, "policy mask: ramp seen (envs x A x R)")                \
+  X(uint8_t, value_mask_ramps, L.max_agents* L.max_ramps, "value mask: ramp exists (envs x A x R)")         \
+  X(float, obs_sites, L.max_agents* L.max_sites* Layout::kSiteFeatures, "sites (envs x A x C x 15)")        \
+  X(uint8_t, mask_sites, L.max_agents* L.max_sites, "policy mask: site exists (envs x A x C)")              \
+  X(uint8_t, value_mask_sites, L.max_agents* L.max_sites, "value mask: site exists (envs x A x C)")
 
 // The batch state: one aligned buffer per field, sized num_envs x (elements per env).
 struct BatchState {
@@ -312,6 +320,7 @@ class BatchSim {
   void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 box-locking tasks, for agent 0
   void lockbox_retarget(int env);                    // agent 0's target and its distance
   void shelter_rewards_env(int env, float* reward);  // SPEC §9.3
+  void blueprint_rewards_env(int env, float* reward);  // SPEC §9.1; sets task_complete
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).

@@ -23,6 +23,11 @@ ParamLayout build_layout(const NetConfig& cfg, EntityNet& policy, EntityNet& val
 
 }  // namespace
 
+ParamLayout ActorCritic::layout_of(const NetConfig& cfg) {
+  EntityNet policy, value;
+  return build_layout(cfg, policy, value);
+}
+
 ObsBatch ObsBatch::rows_from(size_t first, const ObsShape& s) const {
   if (index != nullptr) {
     ObsBatch b = *this;
@@ -36,22 +41,27 @@ ObsBatch ObsBatch::rows_from(size_t first, const ObsShape& s) const {
   b.agents = offset(agents, first, na * s.agent_features);
   b.boxes = offset(boxes, first, static_cast<size_t>(s.max_boxes) * s.box_features);
   b.ramps = offset(ramps, first, static_cast<size_t>(s.max_ramps) * s.ramp_features);
+  b.sites = offset(sites, first, static_cast<size_t>(s.max_sites) * s.site_features);
   b.agents_seen = offset(agents_seen, first, na);
   b.boxes_seen = offset(boxes_seen, first, s.max_boxes);
   b.ramps_seen = offset(ramps_seen, first, s.max_ramps);
+  b.sites_seen = offset(sites_seen, first, s.max_sites);
   b.agents_present = offset(agents_present, first, na);
   b.boxes_present = offset(boxes_present, first, s.max_boxes);
   b.ramps_present = offset(ramps_present, first, s.max_ramps);
+  b.sites_present = offset(sites_present, first, s.max_sites);
   b.reset = offset(reset, first, 1);
   return b;
 }
 
 NetInputs ObsBatch::policy_inputs() const {
-  return {self, lidar, agents, boxes, ramps, agents_seen, boxes_seen, ramps_seen, reset, index};
+  return {self,        lidar,      agents,     boxes,      ramps, sites,
+          agents_seen, boxes_seen, ramps_seen, sites_seen, reset, index};
 }
 
 NetInputs ObsBatch::value_inputs() const {
-  return {self, lidar, agents, boxes, ramps, agents_present, boxes_present, ramps_present, reset, index};
+  return {self,           lidar,         agents,        boxes,         ramps, sites,
+          agents_present, boxes_present, ramps_present, sites_present, reset, index};
 }
 
 // Per-thread activations for one chunk shape, and the chunk's output-gradient scratch.

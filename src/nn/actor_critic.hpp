@@ -8,9 +8,9 @@
 // in group order. So results are bit-identical for any number of TBB threads.
 //
 // Masks (SPEC.md §4.6, §10.3): the policy sees entities through the visibility masks (agents_seen,
-// boxes_seen, ramps_seen); the omniscient value net uses the presence masks (agents_present, boxes_present =
-// the original's mask_ab_obs_spoof, ramps_present), which are all 1 for slots that hold an entity, padding 0.
-// Self is always 1.
+// boxes_seen, ramps_seen, sites_seen); the omniscient value net uses the presence masks (agents_present,
+// boxes_present = the original's mask_ab_obs_spoof, ramps_present, sites_present), which are all 1 for slots
+// that hold an entity, padding 0. Self is always 1.
 #pragma once
 
 #include "nn/entity_net.hpp"
@@ -34,12 +34,15 @@ struct ObsBatch {
   const float* agents = nullptr;          // [rows, max_agents - 1, agent_features]
   const float* boxes = nullptr;           // [rows, max_boxes, box_features]
   const float* ramps = nullptr;           // [rows, max_ramps, ramp_features]
+  const float* sites = nullptr;           // [rows, max_sites, site_features]
   const float* agents_seen = nullptr;     // [rows, max_agents - 1] policy masks, 0/1; null = all 1
   const float* boxes_seen = nullptr;      // [rows, max_boxes]
   const float* ramps_seen = nullptr;      // [rows, max_ramps]
+  const float* sites_seen = nullptr;      // [rows, max_sites]
   const float* agents_present = nullptr;  // [rows, max_agents - 1] value masks, 0/1; null = all 1
   const float* boxes_present = nullptr;   // [rows, max_boxes]
   const float* ramps_present = nullptr;   // [rows, max_ramps]
+  const float* sites_present = nullptr;   // [rows, max_sites]
   const float* reset = nullptr;    // [rows] 1 where the LSTM states are zeroed before the step; null = never
   const int32_t* index = nullptr;  // [rows] the array row of each batch row; null = row r is row r
 
@@ -84,6 +87,9 @@ class ActorCritic {
   ~ActorCritic();
   ActorCritic(const ActorCritic&) = delete;
   ActorCritic& operator=(const ActorCritic&) = delete;
+
+  // The parameter layout an ActorCritic of this config has (to read another run's parameters by name).
+  static ParamLayout layout_of(const NetConfig& cfg);
 
   const NetConfig& config() const { return cfg_; }
   const ParallelConfig& parallel() const { return par_; }

@@ -40,12 +40,13 @@ void EntityNet::Buffers::bind(Arena& arena) {
   const size_t m = o.self_features + static_cast<size_t>(o.lidar_rays) * cfg.lidar_filters;
   const size_t e = o.num_entities();
   const size_t d = cfg.embed;
-  const size_t max_count = std::max({o.num_other_agents(), o.max_boxes, o.max_ramps, 1});
+  const size_t max_count = std::max({o.num_other_agents(), o.max_boxes, o.max_ramps, o.max_sites, 1});
   main = arena.take(rows * m);
   lidar_n = arena.take(rows * o.lidar_rays);
   agents_n = arena.take(rows * o.num_other_agents() * o.agent_features);
   boxes_n = arena.take(rows * o.max_boxes * o.box_features);
   ramps_n = arena.take(rows * o.max_ramps * o.ramp_features);
+  sites_n = arena.take(rows * o.max_sites * o.site_features);
   mask = arena.take(rows * e);
   reset = arena.take(rows);
   x = arena.take(rows * e * d);
@@ -88,6 +89,9 @@ EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, co
     boxes_embed_ = EntityEmbedding(layout, p + "embed_boxes", m, o.box_features, cfg.embed);
   if (o.max_ramps > 0)
     ramps_embed_ = EntityEmbedding(layout, p + "embed_ramps", m, o.ramp_features, cfg.embed);
+  HNS_NN_CHECK(o.max_sites == 0 || o.site_features > 0, "sites without features");
+  if (o.max_sites > 0)
+    sites_embed_ = EntityEmbedding(layout, p + "embed_sites", m, o.site_features, cfg.embed);
   attention_ = SelfAttention(layout, p + "attention", cfg.embed, cfg.heads, true, true);
   cat_norm_ = LayerNorm(layout, p + "cat_norm", 2 * cfg.embed);
   dense_ = Dense(layout, p + "dense", 2 * cfg.embed, cfg.dense, Activation::kRelu);
@@ -126,6 +130,7 @@ double EntityNet::forward_flops(int rows) const {
   if (o.num_other_agents() > 0) f += agents_embed_.flops(rows, double(rows) * o.num_other_agents());
   if (o.max_boxes > 0) f += boxes_embed_.flops(rows, double(rows) * o.max_boxes);
   if (o.max_ramps > 0) f += ramps_embed_.flops(rows, double(rows) * o.max_ramps);
+  if (o.max_sites > 0) f += sites_embed_.flops(rows, double(rows) * o.max_sites);
   const double e = o.num_entities();
   f += attention_.flops(rows * e, rows * e * e);
   f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
@@ -135,17 +140,19 @@ double EntityNet::forward_flops(int rows) const {
 double EntityNet::forward_flops_used(const NetInputs& in, int rows) const {
   HNS_NN_CHECK(in.index == nullptr, "forward_flops_used counts contiguous rows only");
   const ObsShape& o = cfg_.obs;
-  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps, nc = o.max_sites;
   double f = conv_.flops(rows) + self_embed_.flops(rows);
   if (na > 0) f += agents_embed_.flops(rows, count_unmasked(in.agents_mask, rows, na));
   if (nb > 0) f += boxes_embed_.flops(rows, count_unmasked(in.boxes_mask, rows, nb));
   if (nr > 0) f += ramps_embed_.flops(rows, count_unmasked(in.ramps_mask, rows, nr));
+  if (nc > 0) f += sites_embed_.flops(rows, count_unmasked(in.sites_mask, rows, nc));
   double entities = 0, pairs = 0;
   for (int r = 0; r < rows; ++r) {
     const double n =
         1 + count_unmasked(in.agents_mask == nullptr ? nullptr : in.agents_mask + ptrdiff_t(r) * na, 1, na) +
         count_unmasked(in.boxes_mask == nullptr ? nullptr : in.boxes_mask + ptrdiff_t(r) * nb, 1, nb) +
-        count_unmasked(in.ramps_mask == nullptr ? nullptr : in.ramps_mask + ptrdiff_t(r) * nr, 1, nr);
+        count_unmasked(in.ramps_mask == nullptr ? nullptr : in.ramps_mask + ptrdiff_t(r) * nr, 1, nr) +
+        count_unmasked(in.sites_mask == nullptr ? nullptr : in.sites_mask + ptrdiff_t(r) * nc, 1, nc);
     entities += n;
     pairs += n * n;
   }
@@ -183,7 +190,11 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   assert(sequences <= b.sequences && steps == b.steps);
   inject_nn_work(rows);
   const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
-  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps, nc = o.max_sites;
+  HNS_NN_CHECK(in.self != nullptr && in.lidar != nullptr && (na == 0 || in.agents != nullptr) &&
+                   (nb == 0 || in.boxes != nullptr) && (nr == 0 || in.ramps != nullptr) &&
+                   (nc == 0 || in.sites != nullptr),
+               "an entity type of the observation shape has no input array");
 
   // Gather the rows (through in.index, if any), normalising and clipping unless they are normalised
   // already: self into main[:, 0:S), lidar, and each entity type. A masked entity's features are gathered
@@ -209,8 +220,10 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
     gather(in.boxes, kObsBoxes, nb * o.box_features, o.box_features, b.boxes_n, nb * o.box_features);
   if (nr > 0)
     gather(in.ramps, kObsRamps, nr * o.ramp_features, o.ramp_features, b.ramps_n, nr * o.ramp_features);
+  if (nc > 0)
+    gather(in.sites, kObsSites, nc * o.site_features, o.site_features, b.sites_n, nc * o.site_features);
 
-  // Entity mask [agents, boxes, ramps, self]; the reset flags of the rows.
+  // Entity mask [agents, boxes, ramps, sites, self]; the reset flags of the rows.
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t src = in_row(in, r);
     float* mk = b.mask + static_cast<ptrdiff_t>(r) * e;
@@ -218,6 +231,8 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
     for (int j = 0; j < nb; ++j) mk[na + j] = in.boxes_mask != nullptr ? in.boxes_mask[src * nb + j] : 1.0f;
     for (int j = 0; j < nr; ++j)
       mk[na + nb + j] = in.ramps_mask != nullptr ? in.ramps_mask[src * nr + j] : 1.0f;
+    for (int j = 0; j < nc; ++j)
+      mk[na + nb + nr + j] = in.sites_mask != nullptr ? in.sites_mask[src * nc + j] : 1.0f;
     mk[e - 1] = 1.0f;
     b.reset[r] = in.reset != nullptr ? in.reset[src] : 0.0f;
   }
@@ -237,6 +252,9 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   if (nr > 0)
     ramps_embed_.forward(params, main, CMat(b.ramps_n, rows * nr, o.ramp_features),
                          {b.x, rows, e, d, na + nb, nr}, scratch);
+  if (nc > 0)
+    sites_embed_.forward(params, main, CMat(b.sites_n, rows * nc, o.site_features),
+                         {b.x, rows, e, d, na + nb + nr, nc}, scratch);
 
   // Masked residual self-attention, masked mean pool, concat with the self embedding, layer norm.
   attention_.forward(params, CMat(b.x, rows * e, d), b.mask, e, b.sa, Mat(b.sa_out, rows * e, d));
@@ -265,7 +283,7 @@ void EntityNet::backward(const float* params, float* grads, int sequences, int s
   const int rows = sequences * steps;
   assert(sequences <= b.sequences && steps == b.steps && d_output.rows == rows);
   const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
-  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps;
+  const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps, nc = o.max_sites;
   const int u = cfg_.lstm, h = cfg_.dense;
 
   // Head, output layer norm, LSTM (through time), dense + ReLU + layer norm, concat layer norm.
@@ -310,6 +328,10 @@ void EntityNet::backward(const float* params, float* grads, int sequences, int s
     ramps_embed_.backward(params, grads, main, CMat(b.ramps_n, rows * nr, o.ramp_features),
                           {b.x, rows, e, d, na + nb, nr}, {b.d_x, rows, e, d, na + nb, nr}, scratch_rows,
                           Mat(b.embed_ent, rows * nr, d), d_main);
+  if (nc > 0)
+    sites_embed_.backward(params, grads, main, CMat(b.sites_n, rows * nc, o.site_features),
+                          {b.x, rows, e, d, na + nb + nr, nc}, {b.d_x, rows, e, d, na + nb + nr, nc},
+                          scratch_rows, Mat(b.embed_ent, rows * nc, d), d_main);
   conv_.backward(params, grads, CMat(b.lidar_n, rows, l), CMat(b.main + s, rows, conv_.out_width(), m),
                  Mat(b.d_main + s, rows, conv_.out_width(), m));
 }

@@ -41,11 +41,15 @@ struct ObsShape {
   int box_features = 15;  // position 3, yaw cos/sin 2, velocity 3, angular velocity 1, size 3, lock 3
   int max_ramps = 2;
   int ramp_features = 15;  // as boxes (size padded with zeros)
+  // Sites: the fourth entity type, only in the scenes that have one (0 elsewhere, and the network then has
+  // no parameters for it): blueprint's construction sites (centre 3 + 4 corners x 3 = 15 features).
+  int max_sites = 0;
+  int site_features = 0;
   int lidar_rays = 30;
 
   int num_other_agents() const { return max_agents - 1; }
-  // Entities attended over: other agents, boxes, ramps, self.
-  int num_entities() const { return num_other_agents() + max_boxes + max_ramps + 1; }
+  // Entities attended over: other agents, boxes, ramps, sites, self.
+  int num_entities() const { return num_other_agents() + max_boxes + max_ramps + max_sites + 1; }
 };
 
 struct NetConfig {
@@ -74,9 +78,11 @@ struct NetInputs {
   const float* agents = nullptr;       // [rows, max_agents - 1, agent_features]
   const float* boxes = nullptr;        // [rows, max_boxes, box_features]
   const float* ramps = nullptr;        // [rows, max_ramps, ramp_features]
+  const float* sites = nullptr;        // [rows, max_sites, site_features]
   const float* agents_mask = nullptr;  // [rows, max_agents - 1], 0/1; null = all 1
   const float* boxes_mask = nullptr;   // [rows, max_boxes]
   const float* ramps_mask = nullptr;   // [rows, max_ramps]
+  const float* sites_mask = nullptr;   // [rows, max_sites]
   const float* reset = nullptr;    // [rows], 1 where the LSTM state is zeroed before the step; null = never
   const int32_t* index = nullptr;  // [rows] array row of each row; null = the identity
 };
@@ -94,11 +100,12 @@ class EntityNet {
     float* agents_n = nullptr;    // [rows * A, Fa] normalised
     float* boxes_n = nullptr;     // [rows * B, Fb]
     float* ramps_n = nullptr;     // [rows * R, Fr]
-    float* mask = nullptr;        // [rows, E] entity mask (agents, boxes, ramps, self = 1)
+    float* sites_n = nullptr;     // [rows * C, Fc]
+    float* mask = nullptr;        // [rows, E] entity mask (agents, boxes, ramps, sites, self = 1)
     float* reset = nullptr;       // [rows] the rows' reset flags (0 without any)
     float* x = nullptr;           // [rows * E, D] entity embeddings
     float* embed_rows = nullptr;  // [rows, D] scratch
-    float* embed_ent = nullptr;   // [rows * max(A, B, R), D] scratch
+    float* embed_ent = nullptr;   // [rows * max(A, B, R, C), D] scratch
     SelfAttention::Buffers sa;
     float* sa_out = nullptr;       // [rows * E, D]
     float* cat = nullptr;          // [rows, 2D] self embedding, pooled
@@ -168,6 +175,7 @@ class EntityNet {
   EntityEmbedding agents_embed_;
   EntityEmbedding boxes_embed_;
   EntityEmbedding ramps_embed_;
+  EntityEmbedding sites_embed_;
   SelfAttention attention_;
   LayerNorm cat_norm_;
   Dense dense_;

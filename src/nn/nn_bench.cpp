@@ -120,7 +120,7 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
   const SyntheticObs train_obs(cfg.obs, o.masks, train_rows, o.seed + 1);
   ObsNormalizer norm(cfg.obs);
   norm.update(train_obs.self.data(), train_obs.lidar.data(), train_obs.agents.data(), train_obs.boxes.data(),
-              train_obs.ramps.data(), train_rows);
+              train_obs.ramps.data(), nullptr, train_rows);
 
   // Inference: one step for infer_agents agents.
   {

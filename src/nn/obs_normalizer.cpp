@@ -8,11 +8,17 @@
 namespace hns::nn {
 
 ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
-  features_ = {shape.self_features, 1, shape.agent_features, shape.box_features, shape.ramp_features};
-  expanded_ = {shape.self_features, shape.lidar_rays, shape.agent_features, shape.box_features,
-               shape.ramp_features};
-  values_per_row_ = {shape.self_features, shape.lidar_rays, shape.num_other_agents() * shape.agent_features,
-                     shape.max_boxes * shape.box_features, shape.max_ramps * shape.ramp_features};
+  const int site_features = shape.max_sites > 0 ? shape.site_features : 0;
+  features_ = {shape.self_features, 1, shape.agent_features, shape.box_features, shape.ramp_features,
+               site_features};
+  expanded_ = {shape.self_features, shape.lidar_rays,    shape.agent_features,
+               shape.box_features,  shape.ramp_features, site_features};
+  values_per_row_ = {shape.self_features,
+                     shape.lidar_rays,
+                     shape.num_other_agents() * shape.agent_features,
+                     shape.max_boxes * shape.box_features,
+                     shape.max_ramps * shape.ramp_features,
+                     shape.max_sites * site_features};
   for (int k = 0; k < kNumObsKeys; ++k) {
     biased_mean_[k].assign(features_[k], 0.0);
     biased_sq_[k].assign(features_[k], 0.0);
@@ -22,9 +28,9 @@ ObsNormalizer::ObsNormalizer(const ObsShape& shape, double beta) : beta_(beta) {
 }
 
 void ObsNormalizer::update(const float* self, const float* lidar, const float* agents, const float* boxes,
-                           const float* ramps, int rows, const uint8_t* row_mask) {
+                           const float* ramps, const float* sites, int rows, const uint8_t* row_mask) {
   Sums sums = make_sums();
-  add_rows(sums, self, lidar, agents, boxes, ramps, rows, row_mask);
+  add_rows(sums, self, lidar, agents, boxes, ramps, sites, rows, row_mask);
   apply(sums);
 }
 
@@ -57,9 +63,9 @@ ObsNormalizer::Sums ObsNormalizer::make_sums() const {
 }
 
 void ObsNormalizer::add_rows(Sums& sums, const float* self, const float* lidar, const float* agents,
-                             const float* boxes, const float* ramps, int rows,
+                             const float* boxes, const float* ramps, const float* sites, int rows,
                              const uint8_t* row_mask) const {
-  const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps};
+  const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps, sites};
   for (int k = 0; k < kNumObsKeys; ++k) {
     if (data[k] == nullptr || values_per_row_[k] == 0) continue;
     const int f = features_[k];

@@ -19,7 +19,9 @@ namespace hns::nn {
 
 struct ObsShape;
 
-enum ObsKey : int { kObsSelf = 0, kObsLidar, kObsAgents, kObsBoxes, kObsRamps, kNumObsKeys };
+// kObsSites: the fourth entity type (ObsShape::max_sites), only in the scenes that have one; its statistics
+// stay empty (no features) elsewhere.
+enum ObsKey : int { kObsSelf = 0, kObsLidar, kObsAgents, kObsBoxes, kObsRamps, kObsSites, kNumObsKeys };
 
 // Float arrays the forward pass reads; valid while the normaliser lives and is not updated. The identity
 // view (null arrays) says the observations are normalised already: the forward only gathers them.
@@ -43,7 +45,7 @@ class ObsNormalizer {
   // row_mask counts every row. Pointers as in NetInputs; a null key is skipped (its statistics and debias
   // term unchanged). Deterministic (sums in index order, in double).
   void update(const float* self, const float* lidar, const float* agents, const float* boxes,
-              const float* ramps, int rows, const uint8_t* row_mask = nullptr);
+              const float* ramps, const float* sites, int rows, const uint8_t* row_mask = nullptr);
   // The same update from rows that arrive in blocks (a rollout, step by step and env by env, read straight
   // from the simulator): the sums of x and x^2 per feature and the rows counted, per key, filled by
   // add_rows(), merged (summed) with others, and applied as one EMA update. update() is one add_rows() and
@@ -56,7 +58,7 @@ class ObsNormalizer {
   };
   Sums make_sums() const;
   void add_rows(Sums& sums, const float* self, const float* lidar, const float* agents, const float* boxes,
-                const float* ramps, int rows, const uint8_t* row_mask = nullptr) const;
+                const float* ramps, const float* sites, int rows, const uint8_t* row_mask = nullptr) const;
   // One EMA update from the sums (keys without counted rows unchanged).
   void apply(const Sums& sums);
 

@@ -12,6 +12,7 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "lock-and-return") return WorldConfig::lock_and_return();
   if (name == "sequential-lock") return WorldConfig::sequential_lock();
   if (name == "shelter") return WorldConfig::shelter();
+  if (name == "blueprint") return WorldConfig::blueprint();
   std::string names;
   for (const char* n : kSceneNames) names += std::string(names.empty() ? "" : ", ") + n;
   throw ConfigError("scene = '" + name + "' is invalid: must be one of " + names);

@@ -24,6 +24,7 @@ constexpr int kRoomFailures = 10;  // random walls: restarts from the outer wall
 constexpr int kMaxAgents = 32;
 constexpr int kMaxBoxes = 32;
 constexpr int kMaxRamps = 16;
+constexpr int kMaxSites = 8;
 constexpr int kMaxRooms = 8;
 constexpr int kMaxDoorSize = 10;
 constexpr int kMaxRoomWalls = kMaxRooms + 3;            // 4 outer walls + rooms - 1 interior walls
@@ -304,19 +305,20 @@ void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect
 // ---------------------------------------------------------------------------------------------------------------
 // Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
 enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom, kMiddle };
-constexpr double kMiddleFraction = 0.7;  // shelter's cylinder: uniform_placement_middle(0.7)
+constexpr double kMiddleFraction = 0.7;       // shelter's cylinder: uniform_placement_middle(0.7)
+constexpr double kSiteMiddleFraction = 0.85;  // blueprint's sites: uniform_away_from_walls (SPEC §9.1)
 
 struct Cell {
   int i = 0, j = 0;
 };
 
 Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, const CellRect& room,
-                  Rng& rng) {
+                  double middle, Rng& rng) {
   constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
   switch (p) {
-    case Placement::kMiddle: {  // uniform_placement_middle(f), f = kMiddleFraction (SPEC §2.5)
-      auto range = [](int c) {
-        constexpr double f = kMiddleFraction;
+    case Placement::kMiddle: {  // uniform_placement_middle(f), f = middle (SPEC §2.5)
+      auto range = [middle](int c) {
+        const double f = middle;
         const int lo = static_cast<int>((kG - c) * (1 - f) / 2 + f),
                   hi = static_cast<int>((kG - c) * (1 + f) / 2 - f);
         return std::pair<int, int>{lo, std::max(lo + 1, hi)};
@@ -361,6 +363,7 @@ struct Request {
   Cell anchor;                    // kCloseTo: the anchor's spawn cell
   int radius_cells = 0;           // kCloseTo: r = ceil(radius / 0.2)
   CellRect room{};                // kInRoom: the room's free cells
+  double middle = kMiddleFraction;  // kMiddle: the fraction f
 };
 
 // rejection_placement: up to `tries` proposals; the first whose cells are all free is jittered inside its
@@ -368,7 +371,8 @@ struct Request {
 bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Cell& cell) {
   const int cx = footprint_cells(req.sx), cy = footprint_cells(req.sy);
   for (int t = 0; t < tries; ++t) {
-    const Cell c = propose_cell(req.placement, cx, cy, req.anchor, req.radius_cells, req.room, rng);
+    const Cell c =
+        propose_cell(req.placement, cx, cy, req.anchor, req.radius_cells, req.room, req.middle, rng);
     if (!grid.free(c.i, c.j, cx, cy)) continue;
     const double corner_x = c.i * kCellSize + rng.uniform(0.0, cx * kCellSize - req.sx);
     const double corner_y = c.j * kCellSize + rng.uniform(0.0, cy * kCellSize - req.sy);
@@ -383,7 +387,7 @@ bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Ce
 // ---------------------------------------------------------------------------------------------------------------
 // Why the last attempt failed, for the final error message.
 struct Failure {
-  const char* object = "";  // "hider", "seeker", "box", "ramp", "target" or "rooms"
+  const char* object = "";  // "hider", "seeker", "box", "ramp", "target", "site" or "rooms"
   int index = 0;
   const char* kind = "";  // agent, box kind or ramp
   int cx = 0, cy = 0;
@@ -410,7 +414,7 @@ const char* placement_region(Placement p) {
 }
 
 struct Counts {
-  int hiders = 0, seekers = 0, boxes = 0, elongated = 0, x_aligned = 0, ramps = 0;
+  int hiders = 0, seekers = 0, boxes = 0, elongated = 0, x_aligned = 0, ramps = 0, sites = 0;
 };
 
 int draw(const IntRange& r, Rng& rng) {
@@ -427,6 +431,8 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   n.elongated = rng.uniform_int(std::min(config.elongated.min, elongated_hi), elongated_hi + 1);
   n.x_aligned = rng.uniform_int(0, n.elongated + 1);
   n.ramps = draw(config.ramps, rng);
+  n.sites =
+      config.sites.max > 0 ? draw(config.sites, rng) : 0;  // no draw without sites: other scenes' streams
 
   out.layout = config.layout;
   out.outer_walls = true;
@@ -438,6 +444,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.boxes.clear();
   out.ramps.clear();
   out.has_target = false;
+  out.sites.clear();
   out.num_hiders = n.hiders;
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
@@ -515,6 +522,22 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       return false;
     }
     out.has_target = true;
+  }
+
+  // Blueprint's construction sites, before anything movable.
+  for (int k = 0; k < n.sites; ++k) {
+    Request req;
+    req.placement = Placement::kMiddle;
+    req.middle = kSiteMiddleFraction;
+    req.sx = req.sy = kSiteSize;
+    req.z = 0.5 * kSiteSize;
+    if (!place(req, tries, grid, rng, spawn, cell)) {
+      const int c = footprint_cells(req.sx);
+      fail = Failure{"site", k, "construction site", c, c, req.placement, 0};
+      return false;
+    }
+    spawn.sz = 0.0;
+    out.sites.push_back(spawn);
   }
 
   // Agents (SPEC §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
@@ -676,6 +699,8 @@ void SceneConfig::validate() const {
   check_range("boxes", boxes);
   check_range("elongated", elongated);
   check_range("ramps", ramps);
+  check_range("sites", sites);
+  if (sites.max > kMaxSites) reject("sites.max", sites.max, "must be <= " + std::to_string(kMaxSites));
   // Sums in 64 bits: the fields may hold anything a user typed.
   const int64_t min_agents = int64_t{hiders.min} + seekers.min,
                 max_agents = int64_t{hiders.max} + seekers.max;
@@ -739,8 +764,8 @@ void SceneConfig::validate() const {
   }
   // Every placement function keeps objects within cells 1..28 on both axes (28 x 28 cells).
   const int arena_free = (kGridSize - 2) * (kGridSize - 2);
-  const int arena_need =
-      agent_cells * (hiders.max + seekers.max) + box_cells * boxes.max + ramp_cells * ramps.max;
+  const int arena_need = agent_cells * (hiders.max + seekers.max) + box_cells * boxes.max +
+                         ramp_cells * ramps.max + box_cells * sites.max;
   if (arena_need > arena_free) {
     reject("hiders.max + seekers.max + boxes.max + ramps.max",
            hiders.max + seekers.max + boxes.max + ramps.max,
@@ -756,6 +781,7 @@ void SceneConfig::check_placeable() const {
   most.seekers = {seekers.max, seekers.max};
   most.boxes = {boxes.max, boxes.max};
   most.ramps = {ramps.max, ramps.max};
+  most.sites = {sites.max, sites.max};
   most.rooms = {rooms.max, rooms.max};
   most.target_diameter_min = target_diameter_max;
   const int elongated_hi = std::min(elongated.max, boxes.max);

@@ -25,6 +25,7 @@ inline constexpr double kElongatedLong = 1.65;      // m
 inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
 inline constexpr double kTargetHeight = 0.5;        // m, the shelter task's cylinder
+inline constexpr double kSiteSize = 0.5;            // m, a blueprint construction site's square (a cube's)
 // Quadrant: q_size = int(0.5 * grid size), the room walls' row and column.
 inline constexpr int kQuadrantSize = 15;
 
@@ -65,6 +66,10 @@ struct SceneConfig {
   // in the middle 70 % of the grid before the agents, seen by lidar and vision rays, not observed.
   double target_diameter_min = 0.0;
   double target_diameter_max = 0.0;
+  // Blueprint construction (SPEC §9.1): construction sites, squares of kSiteSize placed by
+  // uniform_placement_middle(0.85) (3 x 3 cells) before anything else, so nothing spawns on one. Not
+  // physical: nothing collides with a site, and rays pass through it.
+  IntRange sites{0, 0};
   int max_tries_per_object = 10;  // rejection placement tries per object (SPEC §2.5)
   int max_regenerations = 1000;   // whole-scene rebuilds before giving up with an error
 
@@ -123,6 +128,8 @@ struct Scene {
   std::vector<Spawn> ramps;
   bool has_target = false;  // shelter: the cylinder, centre and full extents (sx = sy = diameter)
   Spawn target{};
+  std::vector<Spawn>
+      sites;              // blueprint: construction sites, centre at z = kSiteSize / 2, sx = sy = kSiteSize
   int regenerations = 0;  // whole-scene rebuilds this scene needed
 };
 

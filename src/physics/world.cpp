@@ -284,6 +284,14 @@ WorldConfig WorldConfig::shelter() {
   return c;
 }
 
+WorldConfig WorldConfig::blueprint() {
+  WorldConfig c = transfer_task(Task::kBlueprint, 150);
+  c.scene.boxes = {8, 8};
+  c.scene.sites = {1, 4};
+  c.obs_hider = 0;  // SPEC §9.1's constant observation
+  return c;
+}
+
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
 }
@@ -312,13 +320,18 @@ void WorldConfig::validate() const {
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
   check(task == Task::kHideAndSeek || task == Task::kLockBox || task == Task::kLockReturn ||
-            task == Task::kSequentialLock || task == Task::kShelter,
+            task == Task::kSequentialLock || task == Task::kShelter || task == Task::kBlueprint,
         "task", int(task),
-        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3) or shelter (4)");
+        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3), shelter (4) or "
+        "blueprint (5)");
   check(!is_transfer_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
         "must be >= 1 in a transfer task (agent 0 does the task)");
   check(task != Task::kShelter || scene.target_diameter_max > 0, "target_diameter_max",
         scene.target_diameter_max, "must be > 0 in the shelter task (its cylinder)");
+  check(task != Task::kBlueprint || scene.sites.min >= 1, "sites.min", scene.sites.min,
+        "must be >= 1 in the blueprint task (its construction sites)");
+  check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
+        "must be >= 1 in the blueprint task (its building blocks)");
   check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
         "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");

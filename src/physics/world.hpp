@@ -57,8 +57,10 @@ struct WorldConfig {
   // SPEC §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
   // kLockReturn ('all-return': then back to the spawn) and kSequentialLock ('order': boxes in index order,
   // locks of boxes after the first unlocked one refused); or shelter construction (SPEC §9.3: -0.001 per
-  // ray from the arena's edges that reaches the scene's cylinder).
-  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock, kShelter };
+  // ray from the arena's edges that reaches the scene's cylinder); or blueprint construction (SPEC §9.1:
+  // a dense smooth-min reward pulling box corners onto the sites' corners, +3 per site on completion, after
+  // which the episode is absorbed: every later step's reward is 0 and batch::BatchState::task_complete is 1).
+  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock, kShelter, kBlueprint };
   Task task = Task::kHideAndSeek;
   double lock_reward = 5.0;          // box-locking tasks: per newly locked box
   double unlock_penalty = 5.0;       // per newly unlocked box
@@ -92,6 +94,8 @@ struct WorldConfig {
   // SPEC §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2] m,
   // horizon 240.
   static WorldConfig shelter();
+  // SPEC §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
+  static WorldConfig blueprint();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;

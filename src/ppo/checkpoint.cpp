@@ -149,6 +149,7 @@ std::string Trainer::checkpoint_payload() const {
   w.put(adam_->steps());
   for (int k = 0; k < nn::kNumObsKeys; ++k) {
     const auto key = nn::ObsKey(k);
+    if (key == nn::kObsSites && obs_norm_->features(key) == 0) continue;  // written only where sites exist
     w.put_array(obs_norm_->biased_mean(key).data(), obs_norm_->biased_mean(key).size());
     w.put_array(obs_norm_->biased_sq(key).data(), obs_norm_->biased_sq(key).size());
     w.put(obs_norm_->debias(key));
@@ -220,6 +221,8 @@ struct Trainer::CheckpointState {
   int64_t adam_steps = 0;
   std::array<std::vector<double>, nn::kNumObsKeys> obs_mean, obs_sq;
   std::array<double, nn::kNumObsKeys> obs_debias{};
+  nn::ParamLayout layout;  // the saved run's parameter layout (values, m, v are in it)
+  nn::ObsShape shape;      // the saved run's observation shape
   ScalarNormalizer value_norm;
   std::vector<std::vector<std::pair<uint64_t, uint32_t>>> counts;  // intrinsic = count: per env of the run
 };
@@ -240,13 +243,23 @@ Trainer::CheckpointState Trainer::read_checkpoint(
                              ")");
   }
   const TrainConfig& saved = st.config;
+  // The saved run's shapes: its scene decides them (the same as this run's, except in initialize_from).
+  nn::NetConfig saved_net = net_->config();
+  {
+    batch::BatchConfig bc;
+    bc.world = saved.world();
+    saved_net.obs = obs_shape(batch::Layout::of(bc));
+  }
+  st.shape = saved_net.obs;
+  st.layout = nn::ActorCritic::layout_of(saved_net);
+  const nn::ObsNormalizer saved_norm(saved_net.obs);
   st.iteration = r.get<int64_t>();
   st.agent_steps = r.get<int64_t>();
   st.env_steps = r.get<int64_t>();
   (void)r.get<uint8_t>();  // need_restart: a fresh simulator always starts the saved episodes
   st.episodes.resize(size_t(saved.envs));
   r.get_array(st.episodes.data(), st.episodes.size(), "the env episode list");
-  const size_t nf = net_->params().buffer_floats();
+  const size_t nf = st.layout.buffer_floats();
   st.values.resize(nf);
   st.m.resize(nf);
   st.v.resize(nf);
@@ -256,8 +269,9 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   st.adam_steps = r.get<int64_t>();
   for (int k = 0; k < nn::kNumObsKeys; ++k) {
     const auto key = nn::ObsKey(k);
-    st.obs_mean[k].resize(obs_norm_->biased_mean(key).size());
-    st.obs_sq[k].resize(obs_norm_->biased_sq(key).size());
+    if (key == nn::kObsSites && saved_norm.features(key) == 0) continue;  // a scene without sites
+    st.obs_mean[k].resize(saved_norm.biased_mean(key).size());
+    st.obs_sq[k].resize(saved_norm.biased_sq(key).size());
     r.get_array(st.obs_mean[k].data(), st.obs_mean[k].size(), "an observation normaliser");
     r.get_array(st.obs_sq[k].data(), st.obs_sq[k].size(), "an observation normaliser");
     st.obs_debias[k] = r.get<double>();
@@ -301,6 +315,7 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   env_steps_ = st.env_steps;
   if (mode == LoadMode::kResume) next_episode_ = std::move(st.episodes);
   const size_t nf = net_->params().buffer_floats();
+  if (st.values.size() != nf) throw std::logic_error("Trainer::load: a checkpoint of another layout");
   std::memcpy(net_->params().values(), st.values.data(), nf * sizeof(float));
   std::memcpy(adam_->m().data(), st.m.data(), nf * sizeof(float));
   std::memcpy(adam_->v().data(), st.v.data(), nf * sizeof(float));
@@ -331,42 +346,68 @@ std::string Trainer::initialize_from(const std::string& path) {
     const nn::ObsShape theirs = obs_shape(batch::Layout::of(bc));
     // The weights depend on which entity types a scene has, not on their slot counts (the embeddings are
     // shared by the slots of a type and pooled): a hide-and-seek policy acts in a transfer task with more or
-    // fewer boxes.
+    // fewer boxes. This run may add the site type (blueprint from hide-and-seek): its embedding starts from
+    // the seed, as in the paper.
     auto types = [](const nn::ObsShape& o) {
       return std::to_string(o.max_agents - 1) + " other agents, " + std::to_string(o.max_boxes) + " boxes, " +
-             std::to_string(o.max_ramps) + " ramps";
+             std::to_string(o.max_ramps) + " ramps, " + std::to_string(o.max_sites) + " sites";
     };
+    const bool sites_ok =
+        theirs.max_sites == 0 || (mine.max_sites > 0 && theirs.site_features == mine.site_features);
     if ((theirs.max_agents > 1) != (mine.max_agents > 1) || (theirs.max_boxes > 0) != (mine.max_boxes > 0) ||
-        (theirs.max_ramps > 0) != (mine.max_ramps > 0)) {
+        (theirs.max_ramps > 0) != (mine.max_ramps > 0) || !sites_ok) {
       return "observation slots: the checkpoint's scene " + saved.scene + " has " + types(theirs) +
              ", this run's " + cfg_.scene + " " + types(mine) +
-             "; the entity types present (other agents, boxes, ramps) must be the same";
+             "; the entity types present (other agents, boxes, ramps) must be the same, and sites may only "
+             "be "
+             "added";
     }
     return "";
   });
   // The policy's slices always; the value net's (with its return normaliser) when init_value is set; each
-  // network's head (its final layer norm and output layer) unless init_heads is 0.
+  // network's head (its final layer norm and output layer) unless init_heads is 0. Slices are matched by
+  // name: one the checkpoint lacks (a site embedding) keeps its initialisation from the seed.
   std::string carried = cfg_.init_heads != 0 ? "policy weights" : "policy weights (heads from the seed)";
   const nn::ParamLayout& layout = net_->params().layout();
   float* values = net_->params().values();
+  int fresh = 0;
   for (const nn::ParamSlice& slice : layout.slices()) {
     const bool value_net = slice.name.rfind("value/", 0) == 0;
     if (value_net && cfg_.init_value == 0) continue;
     if (cfg_.init_heads == 0 && is_head_slice(slice.name)) continue;
-    std::memcpy(values + slice.offset, st.values.data() + slice.offset, slice.size() * sizeof(float));
+    const nn::ParamSlice* from = st.layout.find(slice.name);
+    if (from == nullptr) {
+      ++fresh;
+      continue;
+    }
+    if (from->rows != slice.rows || from->cols != slice.cols)
+      throw std::logic_error("Trainer::initialize_from: slice " + slice.name + " has another shape");
+    std::memcpy(values + slice.offset, st.values.data() + from->offset, slice.size() * sizeof(float));
   }
+  if (fresh > 0) carried += " (" + std::to_string(fresh) + " slices the checkpoint lacks from the seed)";
   if (cfg_.init_value != 0) {
     carried += ", value weights";
     if (cfg_.init_normalizers != 0) value_norm_ = st.value_norm;
   }
   if (cfg_.init_normalizers != 0) {
+    // Keys the checkpoint lacks (sites) keep their fresh statistics.
+    for (int k = 0; k < nn::kNumObsKeys; ++k) {
+      const auto key = nn::ObsKey(k);
+      if (st.obs_mean[k].size() == obs_norm_->biased_mean(key).size()) continue;
+      st.obs_mean[k] = obs_norm_->biased_mean(key);
+      st.obs_sq[k] = obs_norm_->biased_sq(key);
+      st.obs_debias[k] = obs_norm_->debias(key);
+    }
     obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
     carried += cfg_.init_value != 0 ? ", observation and return normalisers" : ", observation normaliser";
   }
   if (cfg_.init_optimizer != 0) {  // validate() makes sure both networks were carried
-    const size_t nf = net_->params().buffer_floats();
-    std::memcpy(adam_->m().data(), st.m.data(), nf * sizeof(float));
-    std::memcpy(adam_->v().data(), st.v.data(), nf * sizeof(float));
+    for (const nn::ParamSlice& slice : layout.slices()) {
+      const nn::ParamSlice* from = st.layout.find(slice.name);
+      if (from == nullptr) continue;
+      std::memcpy(adam_->m().data() + slice.offset, st.m.data() + from->offset, slice.size() * sizeof(float));
+      std::memcpy(adam_->v().data() + slice.offset, st.v.data() + from->offset, slice.size() * sizeof(float));
+    }
     adam_->set_steps(st.adam_steps);
     carried += ", Adam's moments and step count";
   }

@@ -15,6 +15,8 @@ nn::ObsShape obs_shape(const batch::Layout& L) {
   o.box_features = batch::Layout::kBoxFeatures;
   o.max_ramps = L.max_ramps;
   o.ramp_features = batch::Layout::kRampFeatures;
+  o.max_sites = L.max_sites;
+  o.site_features = L.max_sites > 0 ? batch::Layout::kSiteFeatures : 0;
   o.lidar_rays = batch::Layout::kLidar;
   return o;
 }
@@ -26,12 +28,15 @@ StepObsView StepObsView::of(const batch::BatchState& s) {
   v.agents = s.obs_agents.data();
   v.boxes = s.obs_boxes.data();
   v.ramps = s.obs_ramps.data();
+  v.sites = s.obs_sites.data();
   v.mask_agents = s.mask_agents.data();
   v.mask_boxes = s.mask_boxes.data();
   v.mask_ramps = s.mask_ramps.data();
+  v.mask_sites = s.mask_sites.data();
   v.value_mask_agents = s.value_mask_agents.data();
   v.value_mask_boxes = s.value_mask_boxes.data();
   v.value_mask_ramps = s.value_mask_ramps.data();
+  v.value_mask_sites = s.value_mask_sites.data();
   v.step_count = s.step_count.data();
   v.episode = s.episode.data();
   return v;
@@ -39,7 +44,7 @@ StepObsView StepObsView::of(const batch::BatchState& s) {
 
 void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0,
                           const nn::ObsNormView* norm) {
-  int key = 0;  // the order of the copies below: self, lidar, agents, boxes, ramps
+  int key = 0;  // the order of the copies below: self, lidar, agents, boxes, ramps, sites
   auto copy = [&](nn::FloatBuffer& dst, const float* src, size_t per_row, size_t features) {
     const int k = key++;
     if (per_row == 0) return;
@@ -61,12 +66,15 @@ void ObsArrays::copy_step(const StepObsView& s, const nn::ObsShape& shape, size_
   copy(agents, s.agents, na * shape.agent_features, shape.agent_features);
   copy(boxes, s.boxes, size_t(shape.max_boxes) * shape.box_features, shape.box_features);
   copy(ramps, s.ramps, size_t(shape.max_ramps) * shape.ramp_features, shape.ramp_features);
+  copy(sites, s.sites, size_t(shape.max_sites) * shape.site_features, shape.site_features);
   widen(agents_seen, s.mask_agents, na);
   widen(boxes_seen, s.mask_boxes, shape.max_boxes);
   widen(ramps_seen, s.mask_ramps, shape.max_ramps);
+  widen(sites_seen, s.mask_sites, shape.max_sites);
   widen(agents_present, s.value_mask_agents, na);
   widen(boxes_present, s.value_mask_boxes, shape.max_boxes);
   widen(ramps_present, s.value_mask_ramps, shape.max_ramps);
+  widen(sites_present, s.value_mask_sites, shape.max_sites);
 }
 
 }  // namespace hns::ppo

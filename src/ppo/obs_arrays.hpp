@@ -19,12 +19,15 @@ struct StepObsView {
   const float* agents = nullptr;               // [rows, A - 1, 11]
   const float* boxes = nullptr;                // [rows, B, 15]
   const float* ramps = nullptr;                // [rows, R, 12]
+  const float* sites = nullptr;                // [rows, C, Fc] (the layout's sites; null without)
   const uint8_t* mask_agents = nullptr;        // [rows, A - 1] policy masks, 0/1
   const uint8_t* mask_boxes = nullptr;         // [rows, B]
   const uint8_t* mask_ramps = nullptr;         // [rows, R]
+  const uint8_t* mask_sites = nullptr;         // [rows, C]
   const uint8_t* value_mask_agents = nullptr;  // [rows, A - 1] value masks, 0/1
   const uint8_t* value_mask_boxes = nullptr;   // [rows, B]
   const uint8_t* value_mask_ramps = nullptr;   // [rows, R]
+  const uint8_t* value_mask_sites = nullptr;   // [rows, C]
   const int32_t* step_count = nullptr;  // [envs] env steps taken in the current episode (0: first step)
   const int32_t* episode = nullptr;     // [envs] episode number of the env
 
@@ -41,8 +44,9 @@ struct ObsArrays {
   void copy_step(const StepObsView& s, const nn::ObsShape& shape, size_t rows, size_t row0,
                  const nn::ObsNormView* norm = nullptr);
 
-  nn::FloatBuffer self, lidar, agents, boxes, ramps;
-  nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present;
+  nn::FloatBuffer self, lidar, agents, boxes, ramps, sites;
+  nn::FloatBuffer agents_seen, boxes_seen, ramps_seen, sites_seen;
+  nn::FloatBuffer agents_present, boxes_present, ramps_present, sites_present;
   nn::FloatBuffer reset;
 
   void allocate(const nn::ObsShape& s, size_t rows) {
@@ -52,12 +56,15 @@ struct ObsArrays {
     agents.resize(rows * na * s.agent_features);
     boxes.resize(rows * s.max_boxes * s.box_features);
     ramps.resize(rows * s.max_ramps * s.ramp_features);
+    sites.resize(rows * s.max_sites * s.site_features);
     agents_seen.resize(rows * na);
     boxes_seen.resize(rows * s.max_boxes);
     ramps_seen.resize(rows * s.max_ramps);
+    sites_seen.resize(rows * s.max_sites);
     agents_present.resize(rows * na);
     boxes_present.resize(rows * s.max_boxes);
     ramps_present.resize(rows * s.max_ramps);
+    sites_present.resize(rows * s.max_sites);
     reset.resize(rows);
   }
   nn::ObsBatch batch() const {
@@ -67,12 +74,15 @@ struct ObsArrays {
     b.agents = agents.data();
     b.boxes = boxes.data();
     b.ramps = ramps.data();
+    b.sites = sites.data();
     b.agents_seen = agents_seen.data();
     b.boxes_seen = boxes_seen.data();
     b.ramps_seen = ramps_seen.data();
+    b.sites_seen = sites_seen.data();
     b.agents_present = agents_present.data();
     b.boxes_present = boxes_present.data();
     b.ramps_present = ramps_present.data();
+    b.sites_present = sites_present.data();
     b.reset = reset.data();
     return b;
   }

@@ -349,7 +349,7 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   bc.world = world();
   bc.num_envs = rank_envs;
   const batch::Layout L = batch::Layout::of(bc);
-  // Per buffer row and entity (other agents, boxes, ramps, self) the buffers and activations of both
+  // Per buffer row and entity (other agents, boxes, ramps, sites, self) the buffers and activations of both
   // networks take about 0.7 KB (small) or 1.85 KB (paper), on a fixed 70 MB or 165 MB (code, networks,
   // optimiser, thread pools): measured resident memory of 8 and 32 quadrant envs.
   // The fixed part held 16 gradient groups of 4 bytes per parameter then; the config's count replaces them.
@@ -357,10 +357,13 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   const size_t base = (paper ? 165u : 70u) << 20;
   const size_t per_entity_row = paper ? 1850 : 700;
   const size_t rows = size_t(rollout_steps()) * size_t(rank_envs) * size_t(L.max_agents);
-  const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + 1);
+  const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + L.max_sites + 1);
+  nn::NetConfig net = nn::net_preset(model);
+  net.obs.max_sites = L.max_sites;
+  net.obs.site_features = L.max_sites > 0 ? batch::Layout::kSiteFeatures : 0;
   nn::ParamLayout layout;
-  nn::EntityNet(nn::net_preset(model), nn::NetHead::kPolicy, layout, "policy");
-  nn::EntityNet(nn::net_preset(model), nn::NetHead::kValue, layout, "value");
+  nn::EntityNet(net, nn::NetHead::kPolicy, layout, "policy");
+  nn::EntityNet(net, nn::NetHead::kValue, layout, "value");
   const size_t group_bytes = layout.num_params() * sizeof(float);
   return base - 16 * group_bytes + size_t(grad_groups) * group_bytes + bc.estimated_bytes() +
          rows * entities * per_entity_row;

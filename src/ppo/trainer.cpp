@@ -345,9 +345,12 @@ void Trainer::rollout(IterationMetrics& m) {
   for (nn::ObsNormalizer::Sums& k : b.block_obs_sums) k.clear();
   for (nn::ObsNormalizer::Sums& e : b.episode_obs_sums) e.clear();
   const size_t na = size_t(shape.num_other_agents());
-  const size_t per_agent[5] = {size_t(shape.self_features), size_t(shape.lidar_rays),
-                               na * shape.agent_features, size_t(shape.max_boxes) * shape.box_features,
-                               size_t(shape.max_ramps) * shape.ramp_features};
+  const size_t per_agent[nn::kNumObsKeys] = {size_t(shape.self_features),
+                                             size_t(shape.lidar_rays),
+                                             na * shape.agent_features,
+                                             size_t(shape.max_boxes) * shape.box_features,
+                                             size_t(shape.max_ramps) * shape.ramp_features,
+                                             size_t(shape.max_sites) * shape.site_features};
 
   for (int t = 0; t < T; ++t) {
     const size_t row0 = size_t(t) * G;
@@ -362,10 +365,13 @@ void Trainer::rollout(IterationMetrics& m) {
       const size_t r = size_t(e) * A;
       const auto at = [&](const float* p, int key) { return p == nullptr ? p : p + r * per_agent[key]; };
       obs_norm_->add_rows(b.episode_obs_sums[e], at(view.self, 0), at(view.lidar, 1), at(view.agents, 2),
-                          at(view.boxes, 3), at(view.ramps, 4), A, s.agent_exists.data() + r);
+                          at(view.boxes, 3), at(view.ramps, 4), at(view.sites, 5), A,
+                          s.agent_exists.data() + r);
     }
     for (int g = 0; g < G; ++g) {
-      b.mask[row0 + g] = s.agent_exists[g];
+      // A completed blueprint's remaining steps are absorbed (reward 0, no decision that matters): they
+      // leave every loss, as padding agents do; its completing step was the last one learned from.
+      b.mask[row0 + g] = s.task_complete[size_t(g / A)] != 0 ? 0 : s.agent_exists[g];
       simulated += s.agent_exists[g];
       const bool starts = t == 0 || b.last[row0 - G + g] != 0;
       o.reset[row0 + g] = starts ? 1.0f : 0.0f;
@@ -415,7 +421,7 @@ void Trainer::rollout(IterationMetrics& m) {
         const size_t r = row0 + size_t(e) * A + a;
         b.reward[r] =
             extrinsic * s.reward[size_t(e) * A + a] + (s.agent_exists[size_t(e) * A + a] ? bonus : 0.0f);
-        b.last[r] = (s.done[e] != 0 || t == T - 1) ? 1 : 0;
+        b.last[r] = (s.done[e] != 0 || t == T - 1 || s.task_complete[e] != 0) ? 1 : 0;
       }
     }
     for (const batch::EpisodeStats& st : sim_->finished()) {

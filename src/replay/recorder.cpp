@@ -100,6 +100,8 @@ void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordC
   ep.cylinders.clear();
   if (scene.has_target)
     ep.cylinders.push_back({scene.target.x, scene.target.y, 0.5 * scene.target.sx, scene.target.sz});
+  ep.sites.clear();
+  for (const phys::Spawn& c : scene.sites) ep.sites.push_back({c.x, c.y, c.sx});
   for (const phys::Spawn& b : scene.boxes) ep.box_sizes.push_back({b.sx, b.sy, b.sz});
   std::copy(std::begin(game.restrict_rect), std::end(game.restrict_rect), ep.restrict_rect.begin());
   ep.resize(game.horizon + 1);

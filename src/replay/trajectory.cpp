@@ -143,6 +143,7 @@ std::string episode_chunk(const TrajectoryEpisode& ep) {
   h["outer_walls"] = ep.outer_walls;
   h["walls"] = ep.walls;
   h["cylinders"] = ep.cylinders;
+  h["sites"] = ep.sites;
   h["box_sizes"] = ep.box_sizes;
   h["restrict_rect"] = ep.restrict_rect;
   h["hider_return"] = ep.hider_return;
@@ -363,6 +364,10 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
   for (size_t i = 0; i < ep.cylinders.size(); ++i) {
     if (ep.cylinders[i][2] <= 0 || ep.cylinders[i][3] <= 0)
       f.fail("cylinders", "entry " + std::to_string(i) + ": radius or height <= 0");
+  }
+  if (f.has("sites")) ep.sites = f.rows<3>("sites", -1);  // absent before the blueprint task
+  for (size_t i = 0; i < ep.sites.size(); ++i) {
+    if (ep.sites[i][2] <= 0) f.fail("sites", "entry " + std::to_string(i) + ": edge <= 0");
   }
   ep.box_sizes = f.rows<3>("box_sizes", ep.num_boxes);
   ep.restrict_rect = f.numbers<4>("restrict_rect");

@@ -65,6 +65,8 @@ struct TrajectoryEpisode {
   std::vector<std::array<double, 6>> walls;  // static boxes: centre x, y, z, half extents x, y, z (m)
   // Static cylinders standing on the floor: axis x, y, radius, height (m).
   std::vector<std::array<double, 4>> cylinders;
+  // Construction sites (blueprint) on the floor: centre x, y and edge (m); not physical.
+  std::vector<std::array<double, 3>> sites;
   std::vector<std::array<double, 3>> box_sizes;     // full extents x, y, z (m), one per box
   std::array<double, 4> restrict_rect{0, 0, 0, 0};  // out-of-bounds rectangle x_min, y_min, x_max, y_max (m)
   double hider_return = 0;                          // summed mean hider reward over the episode

@@ -1,7 +1,8 @@
 // The transfer tasks of SPEC §9 on staged scenes: lock-and-return's lock, return and success reward;
 // sequential-lock's order (a lock out of order is refused) and its target; shelter's rays, against a hand
 // count and the double-precision reference, and its cylinder in lidar and vision; the spoofed observation
-// slots that let a hide-and-seek policy act in them.
+// slots that let a hide-and-seek policy act in them; blueprint's smooth-min reward, its completion bonus and
+// the absorbed rest of a completed episode, its sites' placement and observations.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -273,11 +274,12 @@ TEST(Shelter, CylinderCentresSpanTheMiddleRange) {
 }
 
 TEST(TransferTasks, PresetsValidateAndPlace) {
-  for (const char* name : {"lock-and-return", "sequential-lock", "shelter"}) {
+  for (const char* name : {"lock-and-return", "sequential-lock", "shelter", "blueprint"}) {
     physics::WorldConfig w = physics::world_preset(name);
     EXPECT_NO_THROW(w.validate()) << name;
     EXPECT_NO_THROW(w.scene.check_placeable()) << name;
-    EXPECT_EQ(w.horizon, std::string(name) == "shelter" ? 240 : 120) << name;
+    const std::string n = name;
+    EXPECT_EQ(w.horizon, n == "shelter" ? 240 : n == "blueprint" ? 150 : 120) << name;
     EXPECT_EQ(w.prep_steps(), 0) << name;
   }
   BatchConfig c = task_config("sequential-lock");
@@ -316,6 +318,143 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     // The boxes spawn anywhere and already block some rays, never all.
     EXPECT_GT(shelter.shelter_rays_reaching(e), 20);
     EXPECT_LT(shelter.shelter_rays_reaching(e), 100);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------------------
+// Blueprint construction (SPEC §9.1).
+
+Spawn site_at(double x, double y) {
+  return Spawn{x, y, 0.5 * physics::kSiteSize, physics::kSiteSize, physics::kSiteSize, 0.0};
+}
+
+Scene blueprint_scene(std::vector<Spawn> sites, std::vector<Spawn> boxes) {
+  Scene s = lone_agent_scene(agent_at(0.6, 0.6), std::move(boxes));
+  s.sites = std::move(sites);
+  return s;
+}
+
+// SPEC §9.1's smooth minimum of distances, sum d e^(-1.5 d) / sum e^(-1.5 d).
+double smooth_min(std::initializer_list<double> d) {
+  double num = 0, den = 0;
+  for (double x : d) num += x * std::exp(-1.5 * x), den += std::exp(-1.5 * x);
+  return num / den;
+}
+
+// One site at (3, 3) and one cube 1 m east of it, both axis-aligned: the site's west corners are 1, 1.5,
+// sqrt(1.25) and sqrt(2.5) m from the cube's corners, its east corners 0.5, 1, sqrt(0.5) and sqrt(1.25) m.
+TEST(Blueprint, DenseRewardIsMinusFivePercentOfTheMeanSmoothMinCornerDistance) {
+  BatchSim sim(task_config("blueprint"));
+  sim.load_scene(0, blueprint_scene({site_at(3.0, 3.0)}, {cube_at(4.0, 3.0)}));
+  std::vector<AgentAction> idle(size_t(sim.layout().max_agents));
+  sim.step(idle);
+  const double west = smooth_min({1.0, 1.5, std::sqrt(1.25), std::sqrt(2.5)});
+  const double east = smooth_min({0.5, 1.0, std::sqrt(0.5), std::sqrt(1.25)});
+  EXPECT_NEAR(sim.state().reward[0], -0.05 * (west + east) / 2, 2e-4);
+  EXPECT_EQ(sim.state().task_complete[0], 0);
+}
+
+// Cubes placed by hand on both sites complete the blueprint: +3 per site on top of the dense reward, and
+// the rest of the episode is absorbed (reward 0 whatever happens) until the horizon starts the next one.
+// A cube 0.15 m off its site does not count; one 0.05 m off does.
+TEST(Blueprint, BoxesPlacedOnTheSitesCompleteItAndTheRestOfTheEpisodeIsAbsorbed) {
+  BatchSim sim(task_config("blueprint"));
+  const BatchState& s = sim.state();
+  std::vector<AgentAction> idle(size_t(sim.layout().max_agents));
+  const std::vector<Spawn> sites = {site_at(2.0, 2.0), site_at(4.0, 4.0)};
+
+  sim.load_scene(0, blueprint_scene(sites, {cube_at(2.15, 2.0), cube_at(4.0, 4.0), cube_at(1.0, 5.0)}));
+  sim.step(idle);
+  EXPECT_EQ(s.task_complete[0], 0) << "0.15 m off: not on its site";
+  EXPECT_LT(s.reward[0], 0.0f);
+
+  sim.load_scene(0, blueprint_scene(sites, {cube_at(2.05, 2.0), cube_at(4.0, 4.0), cube_at(1.0, 5.0)}));
+  EXPECT_EQ(s.task_complete[0], 0);
+  sim.step(idle);
+  ASSERT_EQ(s.task_complete[0], 1);
+  // The dense term at a (nearly) perfect placement is still the smooth minimum over every box corner: about
+  // -0.05 x 0.4.
+  EXPECT_GT(s.reward[0], 6.0f - 0.05f);
+  EXPECT_LT(s.reward[0], 6.0f - 0.005f);
+  EXPECT_EQ(s.reward[1], 0.0f);  // the spoofed slot
+  const float completed = s.episode_return[0];
+
+  // Absorbed: even pushing a cube off its site and running out of bounds earn nothing.
+  sim.mutable_world(0).set_agent_pose(0, 5.95, 5.95, physics::kAgentRadius, 0.0);
+  sim.resync(0);
+  std::vector<AgentAction> run = idle;
+  run[0].move_x = 10;
+  const int horizon = sim.config().world.horizon;
+  for (int t = 1; t < horizon; ++t) {
+    sim.step(run);
+    ASSERT_EQ(s.reward[0], 0.0f) << "step " << t;
+    if (t < horizon - 1) ASSERT_EQ(s.task_complete[0], 1);
+  }
+  EXPECT_EQ(s.done[0], 1);
+  ASSERT_EQ(sim.finished().size(), 1u);
+  EXPECT_FLOAT_EQ(sim.finished()[0].hider_return, completed);
+  EXPECT_EQ(s.task_complete[0], 0) << "the next episode starts open";
+}
+
+// Sites: 1 to 4 per episode, each a 3 x 3-cell square of uniform_placement_middle(0.85) (cells 2 to 23:
+// centres from 0.65 to 4.95 m), placed before anything movable so no box spawns on one; observed by the lone
+// agent as centre and corners, always visible, padding slots zero with mask 0.
+TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
+  const physics::WorldConfig w = physics::world_preset("blueprint");
+  double lo = 6, hi = 0;
+  int counts[5] = {};
+  for (int seed = 0; seed < 400; ++seed) {
+    physics::Rng rng(uint64_t(seed), 0, 0);
+    Scene s;
+    physics::generate_scene(w.scene, rng, s);
+    ASSERT_GE(s.sites.size(), 1u);
+    ASSERT_LE(s.sites.size(), 4u);
+    ++counts[s.sites.size()];
+    EXPECT_EQ(s.boxes.size(), 8u);
+    for (const Spawn& c : s.sites) {
+      for (double v : {c.x, c.y}) lo = std::min(lo, v), hi = std::max(hi, v);
+      for (const Spawn& b : s.boxes)
+        EXPECT_GE(std::max(std::fabs(b.x - c.x), std::fabs(b.y - c.y)), 0.5 - 1e-9) << "a box on a site";
+    }
+  }
+  for (int n = 1; n <= 4; ++n) EXPECT_GT(counts[n], 50) << n << " sites";
+  EXPECT_GE(lo, 0.65 - 1e-9);
+  EXPECT_LT(lo, 0.75);
+  EXPECT_LE(hi, 4.95 + 1e-9);
+  EXPECT_GT(hi, 4.85);
+
+  BatchConfig c = task_config("blueprint");
+  c.num_envs = 6;
+  BatchSim sim(c);
+  sim.reset();
+  const Layout& L = sim.layout();
+  ASSERT_EQ(L.max_sites, 4);
+  ASSERT_EQ(L.max_agents, 2);
+  const BatchState& st = sim.state();
+  for (int e = 0; e < c.num_envs; ++e) {
+    const Scene& scene = sim.world(e).scene();
+    for (int k = 0; k < L.max_sites; ++k) {
+      const size_t slot = size_t(e) * L.max_agents * L.max_sites + k;  // agent 0's view of site k
+      const float* f = st.obs_sites.data() + slot * Layout::kSiteFeatures;
+      const bool exists = k < int(scene.sites.size());
+      EXPECT_EQ(st.mask_sites[slot], exists ? 1 : 0);
+      EXPECT_EQ(st.value_mask_sites[slot], exists ? 1 : 0);
+      if (!exists) {
+        for (int i = 0; i < Layout::kSiteFeatures; ++i) EXPECT_EQ(f[i], 0.0f);
+        continue;
+      }
+      const Spawn& site = scene.sites[size_t(k)];
+      EXPECT_FLOAT_EQ(f[0], float(site.x));
+      EXPECT_FLOAT_EQ(f[1], float(site.y));
+      EXPECT_FLOAT_EQ(f[2], 0.25f);
+      EXPECT_FLOAT_EQ(f[3], float(site.x) - 0.25f);  // corner (-, -)
+      EXPECT_FLOAT_EQ(f[4], float(site.y) - 0.25f);
+      EXPECT_FLOAT_EQ(f[9], float(site.x) + 0.25f);  // corner (+, +)
+      EXPECT_FLOAT_EQ(f[10], float(site.y) + 0.25f);
+      EXPECT_EQ(st.mask_sites[slot + L.max_sites], 0) << "the spoofed agent slot sees nothing";
+    }
+    EXPECT_EQ(st.obs_self[size_t(e) * L.max_agents * Layout::kSelfFeatures + 9], 0.0f);  // SPEC's hider 0
+    EXPECT_EQ(st.mask_ramps[size_t(e) * L.max_agents * L.max_ramps], 0);                 // spoofed ramp slot
   }
 }
 

@@ -25,8 +25,9 @@ NetConfig tiny_config() {
 
 // Random observations for `rows` agent-steps; present masks have padding slots, seen masks are subsets.
 struct ObsData {
-  std::vector<float> self, lidar, agents, boxes, ramps;
-  std::vector<float> agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present, reset;
+  std::vector<float> self, lidar, agents, boxes, ramps, sites;
+  std::vector<float> agents_seen, boxes_seen, ramps_seen, sites_seen;
+  std::vector<float> agents_present, boxes_present, ramps_present, sites_present, reset;
   ObsData(const ObsShape& s, int rows, uint64_t seed, double p_reset = 0.15) {
     const int na = s.num_other_agents();
     self = random_vector(static_cast<size_t>(rows) * s.self_features, seed + 1, -2.0f, 2.0f);
@@ -34,19 +35,25 @@ struct ObsData {
     agents = random_vector(static_cast<size_t>(rows) * na * s.agent_features, seed + 3, -2.0f, 2.0f);
     boxes = random_vector(static_cast<size_t>(rows) * s.max_boxes * s.box_features, seed + 4, -2.0f, 2.0f);
     ramps = random_vector(static_cast<size_t>(rows) * s.max_ramps * s.ramp_features, seed + 5, -2.0f, 2.0f);
+    sites = random_vector(static_cast<size_t>(rows) * s.max_sites * s.site_features, seed + 10, -2.0f, 2.0f);
     agents_present.assign(static_cast<size_t>(rows) * na, 1.0f);
     boxes_present.assign(static_cast<size_t>(rows) * s.max_boxes, 1.0f);
     ramps_present.assign(static_cast<size_t>(rows) * s.max_ramps, 1.0f);
+    sites_present.assign(static_cast<size_t>(rows) * s.max_sites, 1.0f);
     for (int r = 0; r < rows; ++r) {
       if (r % 3 == 0 && na > 0) agents_present[static_cast<size_t>(r) * na + na - 1] = 0.0f;
       if (r % 2 == 0 && s.max_boxes > 0)
         boxes_present[static_cast<size_t>(r) * s.max_boxes + s.max_boxes - 1] = 0.0f;
+      if (r % 4 == 1 && s.max_sites > 0)
+        sites_present[static_cast<size_t>(r) * s.max_sites + s.max_sites - 1] = 0.0f;
     }
     agents_seen = random_mask(agents_present.size(), seed + 6, 0.6);
     boxes_seen = random_mask(boxes_present.size(), seed + 7, 0.6);
     ramps_seen = random_mask(ramps_present.size(), seed + 8, 0.6);
     for (size_t i = 0; i < agents_seen.size(); ++i) agents_seen[i] *= agents_present[i];
     for (size_t i = 0; i < boxes_seen.size(); ++i) boxes_seen[i] *= boxes_present[i];
+    sites_seen = random_mask(sites_present.size(), seed + 11, 0.7);
+    for (size_t i = 0; i < sites_seen.size(); ++i) sites_seen[i] *= sites_present[i];
     reset = random_mask(rows, seed + 9, p_reset);
   }
   ObsBatch batch() const {
@@ -56,12 +63,15 @@ struct ObsData {
     b.agents = agents.data();
     b.boxes = boxes.data();
     b.ramps = ramps.data();
+    b.sites = sites.data();
     b.agents_seen = agents_seen.data();
     b.boxes_seen = boxes_seen.data();
     b.ramps_seen = ramps_seen.data();
+    b.sites_seen = sites_seen.data();
     b.agents_present = agents_present.data();
     b.boxes_present = boxes_present.data();
     b.ramps_present = ramps_present.data();
+    b.sites_present = sites_present.data();
     b.reset = reset.data();
     return b;
   }
@@ -70,7 +80,8 @@ struct ObsData {
 // A normaliser that has seen the data once (so normalisation is not the identity).
 ObsNormalizer fitted_normalizer(const ObsShape& s, const ObsData& d, int rows) {
   ObsNormalizer n(s);
-  n.update(d.self.data(), d.lidar.data(), d.agents.data(), d.boxes.data(), d.ramps.data(), rows);
+  n.update(d.self.data(), d.lidar.data(), d.agents.data(), d.boxes.data(), d.ramps.data(), d.sites.data(),
+           rows);
   return n;
 }
 
@@ -229,6 +240,9 @@ TEST(NnNetwork, MaskedEntitiesChangeNothing) {
   for (size_t i = 0; i < unseen.boxes_seen.size(); ++i)
     if (unseen.boxes_seen[i] == 0.0f)
       for (int f = 0; f < s.box_features; ++f) unseen.boxes[i * s.box_features + f] = -3e4f * f;
+  for (size_t i = 0; i < unseen.sites_seen.size(); ++i)
+    if (unseen.sites_seen[i] == 0.0f)
+      for (int f = 0; f < s.site_features; ++f) unseen.sites[i * s.site_features + f] = 2e4f + f;
   const Result r1 = run(unseen);
   EXPECT_TRUE(same_bits(base.logits.data(), r1.logits.data(), base.logits.size()));
   EXPECT_FALSE(same_bits(base.value.data(), r1.value.data(), base.value.size()));
@@ -240,6 +254,9 @@ TEST(NnNetwork, MaskedEntitiesChangeNothing) {
   for (size_t i = 0; i < padding.boxes_present.size(); ++i)
     if (padding.boxes_present[i] == 0.0f)
       for (int f = 0; f < s.box_features; ++f) padding.boxes[i * s.box_features + f] = NAN;
+  for (size_t i = 0; i < padding.sites_present.size(); ++i)
+    if (padding.sites_present[i] == 0.0f)
+      for (int f = 0; f < s.site_features; ++f) padding.sites[i * s.site_features + f] = -NAN;
   const Result r2 = run(padding);
   EXPECT_TRUE(same_bits(base.logits.data(), r2.logits.data(), base.logits.size()));
   EXPECT_TRUE(same_bits(base.value.data(), r2.value.data(), base.value.size()));
@@ -290,6 +307,9 @@ TEST(NnNetwork, IndexedNormalisedRowsEqualContiguousRawRows) {
   place(data.agents, rollout.agents, na * s.agent_features, s.agent_features, kObsAgents);
   place(data.boxes, rollout.boxes, s.max_boxes * s.box_features, s.box_features, kObsBoxes);
   place(data.ramps, rollout.ramps, s.max_ramps * s.ramp_features, s.ramp_features, kObsRamps);
+  place(data.sites, rollout.sites, s.max_sites * s.site_features, s.site_features, kObsSites);
+  place(data.sites_seen, rollout.sites_seen, s.max_sites, 1, -1);
+  place(data.sites_present, rollout.sites_present, s.max_sites, 1, -1);
   place(data.agents_seen, rollout.agents_seen, na, 1, -1);
   place(data.boxes_seen, rollout.boxes_seen, s.max_boxes, 1, -1);
   place(data.ramps_seen, rollout.ramps_seen, s.max_ramps, 1, -1);
@@ -453,6 +473,9 @@ TEST(NnNetwork, ChunkOfTenStepsEqualsTenActSteps) {
     gather(data.agents, step.agents, s.num_other_agents() * s.agent_features);
     gather(data.boxes, step.boxes, s.max_boxes * s.box_features);
     gather(data.ramps, step.ramps, s.max_ramps * s.ramp_features);
+    gather(data.sites, step.sites, s.max_sites * s.site_features);
+    gather(data.sites_seen, step.sites_seen, s.max_sites);
+    gather(data.sites_present, step.sites_present, s.max_sites);
     gather(data.agents_seen, step.agents_seen, s.num_other_agents());
     gather(data.boxes_seen, step.boxes_seen, s.max_boxes);
     gather(data.ramps_seen, step.ramps_seen, s.max_ramps);

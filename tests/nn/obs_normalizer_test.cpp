@@ -30,7 +30,7 @@ TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
   EXPECT_EQ(n.view().inv_std[kObsSelf][0], 1.0f);
   // Batch 1: self feature 0 in {1, 3}, feature 1 constant 5; lidar {0..5}.
   const std::vector<float> self1 = {1, 5, 3, 5}, lidar1 = {0, 1, 2, 3, 4, 5}, boxes1 = {2, 2};
-  n.update(self1.data(), lidar1.data(), nullptr, boxes1.data(), nullptr, 2);
+  n.update(self1.data(), lidar1.data(), nullptr, boxes1.data(), nullptr, nullptr, 2);
   EXPECT_NEAR(n.mean(kObsSelf, 0), 2.0, 1e-12);  // debiased: exactly the batch mean after one update
   EXPECT_NEAR(n.std(kObsSelf, 0), 1.0, 1e-9);
   EXPECT_NEAR(n.std(kObsSelf, 1), 0.1, 1e-9);  // constant feature: the std floor sqrt(1e-2)
@@ -38,7 +38,7 @@ TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
   EXPECT_FLOAT_EQ(n.view().mean[kObsLidar][2], 2.5f);  // one channel shared by every ray
   // Batch 2: feature 0 constant 4. EMA with beta 0.9: weights 0.1 * 0.9 and 0.1, debias 0.19.
   const std::vector<float> self2 = {4, 5, 4, 5};
-  n.update(self2.data(), nullptr, nullptr, nullptr, nullptr, 2);
+  n.update(self2.data(), nullptr, nullptr, nullptr, nullptr, nullptr, 2);
   const double mean = (0.09 * 2.0 + 0.1 * 4.0) / 0.19;
   const double sq = (0.09 * 5.0 + 0.1 * 16.0) / 0.19;
   EXPECT_NEAR(n.mean(kObsSelf, 0), mean, 1e-12);
@@ -56,8 +56,8 @@ TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {
   const std::vector<uint8_t> mask = {1, 0, 1};
   const std::vector<float> self_real = {1, 2, 3, 4}, lidar_real = {1, 1, 3, 3}, boxes_real = {5, 6, 7, 8};
   ObsNormalizer masked(s, 0.9), real(s, 0.9);
-  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 3, mask.data());
-  real.update(self_real.data(), lidar_real.data(), nullptr, boxes_real.data(), nullptr, 2);
+  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 3, mask.data());
+  real.update(self_real.data(), lidar_real.data(), nullptr, boxes_real.data(), nullptr, nullptr, 2);
   for (ObsKey k : {kObsSelf, kObsLidar, kObsBoxes}) {
     for (int j = 0; j < masked.features(k); ++j) {
       EXPECT_EQ(masked.mean(k, j), real.mean(k, j)) << "key " << k << " feature " << j;
@@ -66,7 +66,7 @@ TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {
   }
   EXPECT_NEAR(masked.mean(kObsBoxes, 0), 6.5, 1e-12);
   const std::vector<uint8_t> none = {0, 0, 0};
-  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 3, none.data());
+  masked.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 3, none.data());
   EXPECT_EQ(masked.debias(kObsSelf), real.debias(kObsSelf)) << "no real row: no update";
   EXPECT_EQ(masked.mean(kObsSelf, 0), real.mean(kObsSelf, 0));
 }
@@ -82,20 +82,21 @@ TEST(NnObsNormalizer, BlockSumsEqualOneUpdate) {
   const std::vector<uint8_t> mask = {1, 0, 1, 1, 1};
   ObsNormalizer whole(s, 0.9), blocks(s, 0.9), merged(s, 0.9);
   for (int round = 0; round < 2; ++round) {
-    whole.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 5, mask.data());
+    whole.update(self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 5, mask.data());
     ObsNormalizer::Sums one = blocks.make_sums(), first = merged.make_sums(), second = merged.make_sums();
-    blocks.add_rows(one, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
-    blocks.add_rows(one, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3,
+    blocks.add_rows(one, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 2, mask.data());
+    blocks.add_rows(one, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, nullptr, 3,
                     mask.data() + 2);
-    merged.add_rows(second, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, 3,
+    merged.add_rows(second, self.data() + 4, lidar.data() + 4, nullptr, boxes.data() + 4, nullptr, nullptr, 3,
                     mask.data() + 2);
-    merged.add_rows(first, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 2, mask.data());
+    merged.add_rows(first, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 2,
+                    mask.data());
     first.merge(second);
     EXPECT_EQ(one.rows[kObsSelf], 4);
     EXPECT_EQ(first.rows, one.rows);
     const double before = blocks.mean(kObsSelf, 0);
     ObsNormalizer::Sums dropped = blocks.make_sums();
-    blocks.add_rows(dropped, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, 5);
+    blocks.add_rows(dropped, self.data(), lidar.data(), nullptr, boxes.data(), nullptr, nullptr, 5);
     dropped.clear();  // what the trainer does with the sums of a discarded episode
     EXPECT_EQ(blocks.mean(kObsSelf, 0), before) << "the statistics moved before apply()";
     blocks.apply(one);

@@ -24,6 +24,8 @@ inline NetConfig tiny_net_config() {
   c.obs.box_features = 5;
   c.obs.max_ramps = 1;
   c.obs.ramp_features = 4;
+  c.obs.max_sites = 2;
+  c.obs.site_features = 3;
   c.obs.lidar_rays = 8;
   c.lidar_filters = 3;
   c.embed = 8;

@@ -40,12 +40,13 @@ TEST(PpoLoss, ComposedLossGradientMatchesFiniteDifferences) {
   const auto agents = random_vector(size_t(rows) * na * s.agent_features, 13, -2.0f, 2.0f);
   const auto boxes = random_vector(size_t(rows) * s.max_boxes * s.box_features, 14, -2.0f, 2.0f);
   const auto ramps = random_vector(size_t(rows) * s.max_ramps * s.ramp_features, 15, -2.0f, 2.0f);
+  const auto sites = random_vector(size_t(rows) * s.max_sites * s.site_features, 25, -2.0f, 2.0f);
   const auto agents_seen = random_mask(size_t(rows) * na, 16);
   const auto boxes_seen = random_mask(size_t(rows) * s.max_boxes, 17);
   const auto reset = random_mask(rows, 18, 0.2);
   nn::ObsBatch obs;
   obs.self = self.data(), obs.lidar = lidar.data(), obs.agents = agents.data();
-  obs.boxes = boxes.data(), obs.ramps = ramps.data();
+  obs.boxes = boxes.data(), obs.ramps = ramps.data(), obs.sites = sites.data();
   obs.agents_seen = agents_seen.data(), obs.boxes_seen = boxes_seen.data(), obs.reset = reset.data();
   const nn::ObsNormalizer norm(s);
   const auto state_p = random_vector(size_t(seqs) * ac.state_width(), 19);

@@ -486,6 +486,86 @@ TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
   std::remove(mid.c_str());
 }
 
+// Blueprint has a fourth entity type, its construction sites. A hide-and-seek checkpoint starts it: every
+// slice the checkpoint has is carried by name (Adam's moments too), the site embeddings and the sites'
+// normaliser statistics keep the new run's seed, and the run goes on and resumes bit for bit, its checkpoint
+// holding the sites. A blueprint checkpoint cannot start a scene without sites.
+TEST(Trainer, BlueprintStartsFromAHideAndSeekCheckpointWithItsSiteEmbeddingFromTheSeed) {
+  const std::string path = temp_path("init_blueprint.bin");
+  Trainer source(tiny_quadrant());
+  source.iterate();
+  source.save(path);
+  const nn::ParamLayout& from = source.net().params().layout();
+  const std::vector<float> trained = params_of(source);
+  auto floats = [](const nn::FloatBuffer& b) { return std::vector<float>(b.data(), b.data() + b.size()); };
+  const std::vector<float> source_m = floats(source.optimizer().m());
+
+  TrainConfig cfg = tiny_quadrant();
+  cfg.scene = "blueprint";
+  cfg.seed = 11;
+  cfg.init_from = path;
+  cfg.init_optimizer = 1;
+  Trainer fresh(cfg);
+  Trainer t(cfg);
+  const std::string said = t.initialize_from(path);
+  EXPECT_NE(said.find("slices the checkpoint lacks from the seed"), std::string::npos) << said;
+  const std::vector<float> got = params_of(t), seeded = params_of(fresh);
+  const std::vector<float> got_m = floats(t.optimizer().m()), seeded_m = floats(fresh.optimizer().m());
+  int site_slices = 0;
+  for (const nn::ParamSlice& slice : t.net().params().layout().slices()) {
+    const auto at = [&](const std::vector<float>& v, size_t offset) { return v.begin() + long(offset); };
+    const nn::ParamSlice* old = from.find(slice.name);
+    if (slice.name.find("/embed_sites/") != std::string::npos) {
+      ++site_slices;
+      ASSERT_EQ(old, nullptr) << slice.name;
+      EXPECT_TRUE(
+          std::equal(at(got, slice.offset), at(got, slice.offset + slice.size()), at(seeded, slice.offset)))
+          << slice.name;
+      EXPECT_TRUE(std::equal(at(got_m, slice.offset), at(got_m, slice.offset + slice.size()),
+                             at(seeded_m, slice.offset)))
+          << slice.name;
+      continue;
+    }
+    ASSERT_NE(old, nullptr) << slice.name;
+    EXPECT_TRUE(
+        std::equal(at(got, slice.offset), at(got, slice.offset + slice.size()), at(trained, old->offset)))
+        << slice.name;
+    EXPECT_TRUE(std::equal(at(got_m, slice.offset), at(got_m, slice.offset + slice.size()),
+                           at(source_m, old->offset)))
+        << slice.name;
+  }
+  EXPECT_EQ(site_slices, 4);  // kernel and bias of the policy's and the value net's site embedding
+  for (int k = 0; k < nn::kNumObsKeys; ++k) {
+    const auto key = nn::ObsKey(k);
+    const Trainer& want = key == nn::kObsSites ? fresh : source;
+    EXPECT_EQ(t.obs_normalizer().biased_mean(key), want.obs_normalizer().biased_mean(key)) << k;
+    EXPECT_EQ(t.obs_normalizer().debias(key), want.obs_normalizer().debias(key)) << k;
+  }
+  EXPECT_EQ(t.obs_normalizer().features(nn::kObsSites), 15);
+
+  t.iterate();
+  EXPECT_GT(t.obs_normalizer().debias(nn::kObsSites), 0.0) << "the sites' statistics are learned";
+  const std::string mid = temp_path("init_blueprint_mid.bin");
+  t.save(mid);
+  const std::string second = metrics_but_timings(t.iterate());
+  Trainer resumed(cfg);
+  resumed.load(mid);
+  EXPECT_EQ(metrics_but_timings(resumed.iterate()), second);
+  EXPECT_EQ(params_of(resumed), params_of(t));
+
+  TrainConfig back = tiny_quadrant();
+  back.init_from = mid;
+  Trainer q(back);
+  try {
+    q.initialize_from(mid);
+    ADD_FAILURE() << "a blueprint checkpoint started a quadrant run";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("sites may only be added"), std::string::npos) << e.what();
+  }
+  std::remove(path.c_str());
+  std::remove(mid.c_str());
+}
+
 // The paper's fine-tuning reinitialises each network's final layer norm and output layer: with init_heads = 0
 // exactly those slices (policy and value) keep the new run's seeded values, every other slice is carried.
 TEST(Trainer, InitHeadsZeroStartsTheHeadsFromTheSeed) {
