@@ -36,7 +36,7 @@ constexpr int kSmooth = 5;           // curves: trailing mean over this many ite
 
 struct EvalOptions {
   std::string out;
-  std::string tasks = "lock-and-return,sequential-lock,shelter";
+  std::string tasks = "lock-and-return,sequential-lock,shelter,blueprint";
   int seeds = 3;
   int iterations = 40;
   int envs = 64;
@@ -326,7 +326,7 @@ int run_eval(const EvalOptions& opt) {
     if (!w.is_transfer_task())
       throw physics::ConfigError("--tasks: '" + t +
                                  "' is not a transfer task (lockbox, lock-and-return, "
-                                 "sequential-lock, shelter)");
+                                 "sequential-lock, shelter, blueprint)");
     if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
   }
