@@ -47,7 +47,8 @@ constexpr const char* kSiteObsFields[] = {"obs_sites", "mask_sites", "value_mask
 // Per-env dimensions of every batch field (BatchState, HNS_BATCH_FIELDS): a dimension of size 1 stays an
 // axis (lockbox's one agent still has an agent axis); per-env scalars have none.
 Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) {
-  const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others, C = L.max_sites;
+  const py::ssize_t A = L.max_agents, B = L.max_boxes, R = L.max_ramps, O = L.others, C = L.max_sites,
+                    CS = L.construction_sites, FD = L.max_food;
   const struct {
     const char* name;
     Shape dims;
@@ -73,8 +74,15 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"ramp_exists", {R}},
       {"ramp_locked", {R}},
       {"ramp_locker", {R}},
-      {"site_pos", {C, 3}},
-      {"site_exists", {C}},
+      {"site_pos", {CS, 3}},
+      {"site_exists", {CS}},
+      {"food_pos", {FD, 3}},
+      {"food_health", {FD}},
+      {"food_respawn", {FD}},
+      {"food_exists", {FD}},
+      {"food_eat_ok", {A, FD}},
+      {"food_eaten", {A}},
+      {"vis_food", {A, FD}},
       {"num_walls", {}},
       {"vis_agents", {A, A}},
       {"vis_boxes", {A, B}},
@@ -105,7 +113,7 @@ Shape field_dims(const std::string& name, size_t count, const batch::Layout& L) 
       {"obs_ramps", {A, R, batch::Layout::kRampFeatures}},
       {"mask_ramps", {A, R}},
       {"value_mask_ramps", {A, R}},
-      {"obs_sites", {A, C, batch::Layout::kSiteFeatures}},
+      {"obs_sites", {A, C, L.site_features}},
       {"mask_sites", {A, C}},
       {"value_mask_sites", {A, C}},
   };
@@ -667,6 +675,7 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   d["num_boxes"] = ep.num_boxes;
   d["num_elongated"] = ep.num_elongated;
   d["num_ramps"] = ep.num_ramps;
+  d["num_food"] = ep.num_food;
   d["outer_walls"] = ep.outer_walls;
   d["hider_return"] = ep.hider_return;
   d["seeker_return"] = ep.seeker_return;
@@ -708,6 +717,7 @@ py::dict episode_dict(const replay::TrajectoryEpisode& ep) {
   d["reward"] = block(ep.reward, {F, A});
   d["prep"] = block(ep.prep, {F});
   d["action"] = block(ep.action, {F, A, replay::kActionFields});
+  d["food"] = block(ep.food, {F, py::ssize_t(ep.num_food), 4});
   return d;
 }
 

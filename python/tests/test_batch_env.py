@@ -33,22 +33,25 @@ def random_actions(rng, env):
 
 
 SITE_OBS_FIELDS = {
-    "obs_sites": (np.float32, ("A", "C", 15)),
+    "obs_sites": (np.float32, ("A", "C", "S")),
     "mask_sites": (np.uint8, ("A", "C")),
     "value_mask_sites": (np.uint8, ("A", "C")),
 }
 
 
 @pytest.mark.parametrize(
-    "scene", ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter", "blueprint"])
+    "scene",
+    ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter", "blueprint", "food",
+     "dynamic-food"])
 def test_shapes_and_dtypes(scene):
     env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
+    sites = {"blueprint": (4, 15), "food": (5, 4), "dynamic-food": (1, 4)}.get(scene, (0, 0))
     sizes = {"A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes, "R": env.max_ramps,
-             "C": env.max_sites}
+             "C": env.max_sites, "S": sites[1]}
     obs, info = env.reset()
-    # Construction sites (blueprint's fourth entity type) are observed only in the scenes that have them.
-    fields = dict(OBS_FIELDS, **SITE_OBS_FIELDS) if scene == "blueprint" else OBS_FIELDS
-    assert env.max_sites == (4 if scene == "blueprint" else 0)
+    # The fourth entity type (blueprint's construction sites, or the food) is observed only where it exists.
+    fields = dict(OBS_FIELDS, **SITE_OBS_FIELDS) if sites[0] else OBS_FIELDS
+    assert env.max_sites == sites[0]
     assert set(obs) == set(fields)
     for name, (dtype, dims) in fields.items():
         assert obs[name].dtype == dtype, name
@@ -82,6 +85,9 @@ def test_shapes_and_dtypes(scene):
         assert state["task_complete"].shape == (3,)
     else:
         assert scene_info["sites"].shape[0] == 0
+    if scene in ("food", "dynamic-food"):
+        assert state["food_health"].shape == (3, sites[0]) and state["food_exists"].all()
+        np.testing.assert_array_equal(obs["obs_sites"][:, 0, :, 3], state["food_health"])
 
 
 def test_views_are_the_batch_buffers_without_copies():

@@ -72,6 +72,7 @@ struct BatchSim::EnvScratch {
   int64_t unstable_resets = 0;
   int64_t ns_physics = 0, ns_mirror = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
   std::vector<TraceEvent> trace;  // filled only while tracing
+  physics::Rng food_rng;          // dynamic food's new spots, drawn from (seed, env, episode) per episode
 };
 
 void BatchConfig::validate() const {
@@ -102,7 +103,12 @@ Layout Layout::of(const BatchConfig& config) {
   L.max_agents = config.world.agent_slots();
   L.max_boxes = scene.boxes.max;
   L.max_ramps = std::max(scene.ramps.max, config.world.obs_min_ramps);
-  L.max_sites = scene.sites.max;
+  L.construction_sites = scene.sites.max;
+  L.max_food = scene.food.max;  // SceneConfig::validate() allows sites or food, not both
+  L.max_sites = std::max(L.construction_sites, L.max_food);
+  L.site_features = L.max_food > 0             ? Layout::kFoodFeatures
+                    : L.construction_sites > 0 ? Layout::kConstructionSiteFeatures
+                                               : 0;
   L.max_walls = ::hns::batch::max_walls(scene);
   L.others = std::max(0, L.max_agents - 1);
   L.shape_boxes = L.max_walls + L.max_boxes;
@@ -135,7 +141,7 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
   config_.validate();
   config_.world.compute_visibility = false;  // the batch's SIMD vision fills it
   layout_ = Layout::of(config_);
-  if (layout_.others + layout_.max_boxes + layout_.max_ramps > kMaxSightLines) {
+  if (layout_.others + layout_.max_boxes + layout_.max_ramps + layout_.max_food > kMaxSightLines) {
     throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": more than " +
                            std::to_string(kMaxSightLines) + " vision targets per agent");
   }
@@ -313,18 +319,33 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
     state_.shape_box_c[sb + w] = 1.0f;
     state_.shape_box_s[sb + w] = 0.0f;
   }
-  const int nc = int(scene.sites.size());
-  if (nc > layout_.max_sites) {
-    throw std::logic_error("scene has " + std::to_string(nc) + " construction sites, layout allows " +
-                           std::to_string(layout_.max_sites));
+  const int nc = int(scene.sites.size()), nf = int(scene.food.size());
+  if (nc > layout_.construction_sites || nf > layout_.max_food) {
+    throw std::logic_error("scene has " + std::to_string(nc) + " construction sites and " +
+                           std::to_string(nf) + " food items, layout allows " +
+                           std::to_string(layout_.construction_sites) + " and " +
+                           std::to_string(layout_.max_food));
   }
-  for (int c = 0; c < layout_.max_sites; ++c) {
-    float* p = state_.site_pos.data() + (size_t(env) * layout_.max_sites + c) * 3;
+  for (int c = 0; c < layout_.construction_sites; ++c) {
+    float* p = state_.site_pos.data() + (size_t(env) * layout_.construction_sites + c) * 3;
     p[0] = c < nc ? float(scene.sites[c].x) : 0.0f;
     p[1] = c < nc ? float(scene.sites[c].y) : 0.0f;
     p[2] = c < nc ? float(scene.sites[c].z) : 0.0f;
-    state_.site_exists[size_t(env) * layout_.max_sites + c] = c < nc ? 1 : 0;
+    state_.site_exists[size_t(env) * layout_.construction_sites + c] = c < nc ? 1 : 0;
   }
+  for (int f = 0; f < layout_.max_food; ++f) {
+    const size_t i = size_t(env) * layout_.max_food + f;
+    float* p = state_.food_pos.data() + i * 3;
+    p[0] = f < nf ? float(scene.food[f].x) : 0.0f;
+    p[1] = f < nf ? float(scene.food[f].y) : 0.0f;
+    p[2] = f < nf ? float(scene.food[f].z) : 0.0f;
+    state_.food_health[i] = f < nf ? float(config_.world.food.max_health) : 0.0f;
+    state_.food_respawn[i] = 0;
+    state_.food_exists[i] = f < nf ? 1 : 0;
+  }
+  std::fill_n(state_.food_eaten.data() + size_t(env) * layout_.max_agents, layout_.max_agents, 0.0f);
+  scratch_[env].food_rng =
+      physics::Rng(config_.seed ^ 0xF00DF00DULL, uint64_t(config_.first_env) + uint64_t(env), episode);
   state_.task_complete[env] = 0;
   if (layout_.shape_cylinders > 0) {
     const physics::Spawn& t = scene.target;
@@ -526,9 +547,13 @@ void BatchSim::vision_env(int env) {
   uint8_t* vis_agents = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
   uint8_t* vis_boxes = s.vis_boxes.data() + size_t(env) * L.max_agents * L.max_boxes;
   uint8_t* vis_ramps = s.vis_ramps.data() + size_t(env) * L.max_agents * L.max_ramps;
+  const float* food_pos = s.food_pos.data() + size_t(env) * L.max_food * 3;
+  const uint8_t* food_exists = s.food_exists.data() + size_t(env) * L.max_food;
+  uint8_t* vis_food = s.vis_food.data() + size_t(env) * L.max_agents * L.max_food;
   std::fill_n(vis_agents, L.max_agents * L.max_agents, 0);
   std::fill_n(vis_boxes, L.max_agents * L.max_boxes, 0);
   std::fill_n(vis_ramps, L.max_agents * L.max_ramps, 0);
+  std::fill_n(vis_food, L.max_agents * L.max_food, 0);
 
   // One viewer's lines of sight: unit direction and length per target in the cone, the shape id that must
   // be hit first, and the visibility flag to set.
@@ -565,6 +590,11 @@ void BatchSim::vision_env(int env) {
       float centroid[3];
       physics::ramp_sight_point(p[0], p[1], p[2], ramp_rot[2 * r], ramp_rot[2 * r + 1], centroid);
       aim(centroid, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
+    }
+    // A food item is a point, not a shape: seen when nothing lies on the segment to it (SPEC §4.1's rule for
+    // site targets), so the shape that must be hit first is none (-1).
+    for (int f = 0; f < L.max_food; ++f) {
+      if (food_exists[f] != 0) aim(food_pos + 3 * f, -1, &vis_food[a * L.max_food + f]);
     }
     first_hits(shapes, RayFan{o[0], o[1], o[2], dx, dy, dz, len, n, shapes.sphere_id(a)}, t, hit);
     for (int k = 0; k < n; ++k) *flag[k] = hit[k] == want[k] ? 1 : 0;
@@ -662,8 +692,6 @@ void BatchSim::rewards_env(int env) {
     s.done[env] = world.done() ? 1 : 0;
     return;
   }
-  float hider_sum = 0, seeker_sum = 0;
-  int hiders = 0;
   for (int a = 0; a < L.max_agents; ++a) {
     float r = 0.0f;
     if (a < n && !prep) {
@@ -671,10 +699,13 @@ void BatchSim::rewards_env(int env) {
       if (objects_out || outside(pos + 3 * a)) r = kOutOfBoundsReward;
     }
     reward[a] = r;
-    if (a < n) {
-      (hider[a] != 0 ? hider_sum : seeker_sum) += r;
-      hiders += hider[a];
-    }
+  }
+  if (L.max_food > 0) food_env(env, reward, prep);  // added to the game's (its wrapper is outermost)
+  float hider_sum = 0, seeker_sum = 0;
+  int hiders = 0;
+  for (int a = 0; a < n; ++a) {
+    (hider[a] != 0 ? hider_sum : seeker_sum) += reward[a];
+    hiders += hider[a];
   }
   float* ret = s.episode_return.data() + size_t(env) * 2;
   if (hiders > 0) ret[0] += hider_sum / hiders;
@@ -747,7 +778,7 @@ void BatchSim::blueprint_rewards_env(int env, float* reward) {
   const Layout& L = layout_;
   BatchState& s = state_;
   const int nb = worlds_[env]->num_boxes();
-  const size_t eb = size_t(env) * L.max_boxes, ec = size_t(env) * L.max_sites;
+  const size_t eb = size_t(env) * L.max_boxes, ec = size_t(env) * L.construction_sites;
   constexpr double kSigns[4][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}};
   auto box_corner = [&](int b, int k, double* out) {
     const float* p = s.box_pos.data() + (eb + b) * 3;
@@ -765,7 +796,7 @@ void BatchSim::blueprint_rewards_env(int env, float* reward) {
   double smooth_sum = 0.0;
   int site_corners = 0, sites = 0;
   bool complete = nb > 0;
-  for (int c = 0; c < L.max_sites; ++c) {
+  for (int c = 0; c < L.construction_sites; ++c) {
     if (s.site_exists[ec + c] == 0) continue;
     ++sites;
     const float* sp = s.site_pos.data() + (ec + c) * 3;
@@ -802,6 +833,67 @@ void BatchSim::blueprint_rewards_env(int env, float* reward) {
     s.task_complete[env] = 1;
   }
   std::fill_n(reward, L.max_agents, float(r));
+}
+
+// The food variants (SPEC §5.4), after the step: every hider the previous observation let eat an item
+// (food_eat_ok) and within eat_radius of it eats 1 unit of it, outside the preparation phase; hiders that
+// would together eat more than is left share it. An item eaten up stays at 0 for respawn_steps steps (the
+// step it was emptied counts as the first), then its health resets, at a new spot with relocate. Each hider
+// gets the units it ate, or the hiders' mean of them (joint_mean), times reward_scale; seekers get nothing.
+void BatchSim::food_env(int env, float* reward, bool prep) {
+  const Layout& L = layout_;
+  BatchState& s = state_;
+  const physics::FoodConfig& fc = config_.world.food;
+  const int n = worlds_[env]->num_agents(), F = L.max_food;
+  const size_t ea = size_t(env) * L.max_agents, ef = size_t(env) * F;
+  const float* pos = s.agent_pos.data() + ea * 3;
+  const uint8_t* hider = s.agent_hider.data() + ea;
+  const uint8_t* eat_ok = s.food_eat_ok.data() + ea * F;
+  float* eaten = s.food_eaten.data() + ea;
+  std::fill_n(eaten, L.max_agents, 0.0f);
+  const float reach2 = float(fc.eat_radius * fc.eat_radius);
+  float total = 0.0f;
+  for (int f = 0; f < F; ++f) {
+    const size_t i = ef + size_t(f);
+    if (s.food_exists[i] == 0) continue;
+    float* p = s.food_pos.data() + i * 3;
+    float& health = s.food_health[i];
+    auto eats = [&](int a) {
+      if (prep || health <= 0.0f || eat_ok[a * F + f] == 0) return false;
+      const float dx = pos[3 * a] - p[0], dy = pos[3 * a + 1] - p[1], dz = pos[3 * a + 2] - p[2];
+      return dx * dx + dy * dy + dz * dz < reach2;
+    };
+    int count = 0;
+    for (int a = 0; a < n; ++a) count += eats(a) ? 1 : 0;
+    if (count > 0) {
+      const float share = std::min(1.0f, health / float(count));
+      for (int a = 0; a < n; ++a)
+        if (eats(a)) eaten[a] += share;
+      health = std::max(0.0f, health - share * float(count));
+      total += share * float(count);
+    }
+    int32_t& empty_steps = s.food_respawn[i];
+    if (fc.respawn_steps > 0 && empty_steps == fc.respawn_steps) {
+      health = float(fc.max_health);
+      if (fc.relocate) {
+        const auto [x, y] = physics::food_respawn_spot(config_.world.scene, scratch_[env].food_rng);
+        p[0] = float(x), p[1] = float(y);
+      }
+    }
+    empty_steps = health <= 0.0f ? empty_steps + 1 : 0;
+  }
+  s.stat_run[size_t(env) * Layout::kRunStats + kFoodEaten] += total;
+  float hider_units = 0.0f;
+  int hiders = 0;
+  for (int a = 0; a < n; ++a) {
+    hider_units += hider[a] != 0 ? eaten[a] : 0.0f;
+    hiders += hider[a];
+  }
+  const float scale = float(fc.reward_scale);
+  for (int a = 0; a < n; ++a) {
+    if (hider[a] == 0) continue;
+    reward[a] += scale * (fc.joint_mean ? hider_units / float(hiders) : eaten[a]);
+  }
 }
 
 // in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
@@ -1018,6 +1110,7 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   st.seeker_high_seen = run[kHighSeen];
   st.ramp_in_room_prep = prep[kRampInRoom];
   st.box_surf = run[kSurfCount] >= float(kSurfSteps) ? 1.0f : 0.0f;
+  st.food_eaten = run[kFoodEaten];
   st.max_agent_move = 0.0f;
   for (int a = 0; a < worlds_[env]->num_agents(); ++a) {
     const size_t i = (size_t(env) * layout_.max_agents + a) * 3;
@@ -1050,8 +1143,10 @@ void BatchSim::observe_env(int env) {
   float* obs_ramps = s.obs_ramps.data() + ea * R * Layout::kRampFeatures;
   uint8_t* mask_ramps = s.mask_ramps.data() + ea * R;
   uint8_t* value_mask_ramps = s.value_mask_ramps.data() + ea * R;
-  const int C = L.max_sites;
-  float* obs_sites = s.obs_sites.data() + ea * C * Layout::kSiteFeatures;
+  const int C = L.max_sites, CS = L.construction_sites, F = L.max_food, SF = L.site_features;
+  float* obs_sites = s.obs_sites.data() + ea * C * SF;
+  uint8_t* eat_ok = s.food_eat_ok.data() + ea * F;
+  std::fill_n(eat_ok, size_t(A) * F, 0);
   uint8_t* mask_sites = s.mask_sites.data() + ea * C;
   uint8_t* value_mask_sites = s.value_mask_sites.data() + ea * C;
   std::fill_n(obs_self, size_t(A) * Layout::kSelfFeatures, 0.0f);
@@ -1064,7 +1159,7 @@ void BatchSim::observe_env(int env) {
   std::fill_n(obs_ramps, size_t(A) * R * Layout::kRampFeatures, 0.0f);
   std::fill_n(mask_ramps, size_t(A) * R, 0);
   std::fill_n(value_mask_ramps, size_t(A) * R, 0);
-  std::fill_n(obs_sites, size_t(A) * C * Layout::kSiteFeatures, 0.0f);
+  std::fill_n(obs_sites, size_t(A) * C * SF, 0.0f);
   std::fill_n(mask_sites, size_t(A) * C, 0);
   std::fill_n(value_mask_sites, size_t(A) * C, 0);
 
@@ -1091,6 +1186,13 @@ void BatchSim::observe_env(int env) {
   const uint8_t* vis_agents = s.vis_agents.data() + ea * A;
   const uint8_t* vis_boxes = s.vis_boxes.data() + ea * B;
   const uint8_t* vis_ramps = s.vis_ramps.data() + ea * R;
+  const uint8_t* vis_food = s.vis_food.data() + ea * F;
+  // No hider is seen by a seeker in this observation (the food variants' eating mask).
+  bool eat_free = true;
+  for (int sk = 0; sk < n && F > 0; ++sk) {
+    if (hider[sk] != 0) continue;
+    for (int h = 0; h < n; ++h) eat_free = eat_free && !(hider[h] != 0 && vis_agents[sk * A + h] != 0);
+  }
   const int hider_obs = config_.world.obs_hider;
   for (int a = 0; a < n; ++a) {
     agent_features(a, obs_self + a * Layout::kSelfFeatures);
@@ -1125,10 +1227,10 @@ void BatchSim::observe_env(int env) {
       value_mask_ramps[a * R + r] = 1;
     }
     // Construction sites (SPEC §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always visible.
-    for (int c = 0; c < C; ++c) {
-      const size_t i = size_t(env) * C + c;
+    for (int c = 0; c < CS; ++c) {
+      const size_t i = size_t(env) * CS + c;
       if (s.site_exists[i] == 0) continue;
-      float* out = obs_sites + (size_t(a) * C + c) * Layout::kSiteFeatures;
+      float* out = obs_sites + (size_t(a) * C + c) * SF;
       const float* p = s.site_pos.data() + 3 * i;
       std::copy_n(p, 3, out);
       constexpr float kHalf = float(0.5 * physics::kSiteSize);
@@ -1140,6 +1242,20 @@ void BatchSim::observe_env(int env) {
       }
       mask_sites[a * C + c] = 1;
       value_mask_sites[a * C + c] = 1;
+    }
+    // Food (SPEC §5.4): position and health, seen through vision; a hider may eat what it sees while no
+    // hider is seen (unless eat_when_caught), which the next step's eating reads.
+    for (int f = 0; f < F; ++f) {
+      const size_t i = size_t(env) * F + f;
+      if (s.food_exists[i] == 0) continue;
+      float* out = obs_sites + (size_t(a) * C + f) * SF;
+      std::copy_n(s.food_pos.data() + 3 * i, 3, out);
+      out[3] = s.food_health[i];
+      const uint8_t seen = vis_food[a * F + f];
+      mask_sites[a * C + f] = seen;
+      value_mask_sites[a * C + f] = 1;
+      eat_ok[a * F + f] =
+          hider[a] != 0 && seen != 0 && (eat_free || config_.world.food.eat_when_caught) ? 1 : 0;
     }
   }
 }

@@ -47,7 +47,7 @@ enum PrepStat { kBoxMove, kBoxLock, kRampMove, kRampLock, kDoorsSealed, kRampInR
 // Slots of the stat_run field: the seeking phase's running statistics. The closest a ramp came to an
 // interior wall (m, starts at 6); 1 once a seeker above a wall saw a hider; steps in which a hider was seen;
 // seeking-phase steps; the sum and count of the seekers' speeds towards their nearest hider (m/s); steps in
-// which a seeker stood on a sliding box.
+// which a seeker stood on a sliding box; food units the hiders ate.
 enum RunStat {
   kRampWallDist,
   kHighSeen,
@@ -56,6 +56,7 @@ enum RunStat {
   kApproachSum,
   kApproachCount,
   kSurfCount,
+  kFoodEaten,
   kNumRunStats
 };
 
@@ -68,7 +69,12 @@ struct Layout {
   int max_agents = 0;                        // A
   int max_boxes = 0;                         // B
   int max_ramps = 0;                         // R
-  int max_sites = 0;                         // C: blueprint's construction sites (0 in other scenes)
+  // C: the networks' fourth entity type, blueprint's construction sites or the food (0 in other scenes),
+  // of site_features floats each (kConstructionSiteFeatures or kFoodFeatures).
+  int max_sites = 0;
+  int site_features = 0;
+  int max_food = 0;                          // F: food items (C = F in the food variants)
+  int construction_sites = 0;                // CS: blueprint's construction sites (C = CS in blueprint)
   int max_walls = 0;                         // walls a scene may have
   int others = 0;                            // A - 1 other-agent slots
   int shape_boxes = 0;                       // ray-cast shape slots: walls + boxes
@@ -79,7 +85,8 @@ struct Layout {
   static constexpr int kAgentFeatures = 11;  // the same for another agent
   static constexpr int kBoxFeatures = 15;    // pos 3, cos/sin, vel 3, ang vel, size 3, you/team/obj lock
   static constexpr int kRampFeatures = 12;   // pos 3, cos/sin, vel 3, ang vel, you/team/obj lock
-  static constexpr int kSiteFeatures = 15;   // centre 3, then 4 corners x 3 (SPEC §9.1)
+  static constexpr int kConstructionSiteFeatures = 15;  // centre 3, then 4 corners x 3 (SPEC §9.1)
+  static constexpr int kFoodFeatures = 4;               // position 3, health (SPEC §5.4)
   static constexpr int kLidar = 30;
   static constexpr int kSpheresPerAgent = 3;  // body, left arm, right arm (SPEC §1.2)
   static constexpr int kPrepStats = kNumPrepStats;
@@ -116,8 +123,15 @@ struct Layout {
   X(uint8_t, ramp_exists, L.max_ramps, "1 if the ramp slot is used (envs x R)")                             \
   X(uint8_t, ramp_locked, L.max_ramps, "1 if pinned (envs x R)")                                            \
   X(int8_t, ramp_locker, L.max_ramps, "agent that locked it last, -1 never (envs x R)")                     \
-  X(float, site_pos, L.max_sites * 3, "construction site centre, m (envs x C x 3)")                         \
-  X(uint8_t, site_exists, L.max_sites, "1 if the site slot is used (envs x C)")                             \
+  X(float, site_pos, L.construction_sites * 3, "construction site centre, m (envs x CS x 3)")               \
+  X(uint8_t, site_exists, L.construction_sites, "1 if the site slot is used (envs x CS)")                   \
+  X(float, food_pos, L.max_food * 3, "food item centre, m (envs x F x 3)")                                  \
+  X(float, food_health, L.max_food, "food units left in the item (envs x F)")                               \
+  X(int32_t, food_respawn, L.max_food, "steps the item has been eaten up (envs x F)")                       \
+  X(uint8_t, food_exists, L.max_food, "1 if the food slot is used (envs x F)")                              \
+  X(uint8_t, food_eat_ok, L.max_agents* L.max_food,                                                         \
+    "agent may eat the item at the next step: a hider that sees it while no hider is seen (envs x A x F)")  \
+  X(float, food_eaten, L.max_agents, "food units the agent ate in the last step (envs x A)")                \
   /* Shapes for ray casts: walls then boxes, ramps, agents; padding parked below the floor. */              \
   X(float, shape_box_cx, L.shape_boxes, "box-shaped occluder centre x, m (envs x SB)")                      \
   X(float, shape_box_cy, L.shape_boxes, "centre y, m")                                                      \
@@ -145,6 +159,7 @@ struct Layout {
   X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")     \
   X(uint8_t, vis_boxes, L.max_agents* L.max_boxes, "agent sees box (envs x A x B)")                         \
   X(uint8_t, vis_ramps, L.max_agents* L.max_ramps, "agent sees ramp (envs x A x R)")                        \
+  X(uint8_t, vis_food, L.max_agents* L.max_food, "agent sees food item (envs x A x F)")                     \
   X(float, lidar, L.max_agents* Layout::kLidar, "lidar distance, m, 6 = nothing (envs x A x 30)")           \
   /* Step outputs (SPEC §5). */                                                                            \
   X(float, reward, L.max_agents, "reward of the last step (envs x A)")                                      \
@@ -176,9 +191,10 @@ struct Layout {
   X(float, obs_ramps, L.max_agents* L.max_ramps* Layout::kRampFeatures, "ramps (envs x A x R x 12)")        \
   X(uint8_t, mask_ramps, L.max_agents* L.max_ramps, "policy mask: ramp seen (envs x A x R)")                \
   X(uint8_t, value_mask_ramps, L.max_agents* L.max_ramps, "value mask: ramp exists (envs x A x R)")         \
-  X(float, obs_sites, L.max_agents* L.max_sites* Layout::kSiteFeatures, "sites (envs x A x C x 15)")        \
-  X(uint8_t, mask_sites, L.max_agents* L.max_sites, "policy mask: site exists (envs x A x C)")              \
-  X(uint8_t, value_mask_sites, L.max_agents* L.max_sites, "value mask: site exists (envs x A x C)")
+  X(float, obs_sites, L.max_agents* L.max_sites* L.site_features,                                           \
+    "construction sites (centre, 4 corners) or food (position, health) (envs x A x C x 15 or 4)")           \
+  X(uint8_t, mask_sites, L.max_agents* L.max_sites, "policy mask: site exists, food seen (envs x A x C)")   \
+  X(uint8_t, value_mask_sites, L.max_agents* L.max_sites, "value mask: site or food exists (envs x A x C)")
 
 // The batch state: one aligned buffer per field, sized num_envs x (elements per env).
 struct BatchState {
@@ -219,7 +235,8 @@ struct BatchState {
   X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
   X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")                \
-  X(max_agent_move, "m, largest agent displacement from its spawn at the end of the episode")
+  X(max_agent_move, "m, largest agent displacement from its spawn at the end of the episode")               \
+  X(food_eaten, "food units the hiders ate in the episode (the food variants)")
 
 // Statistics of one finished episode, reported by the step that ended it.
 struct EpisodeStats {
@@ -321,6 +338,8 @@ class BatchSim {
   void lockbox_retarget(int env);                    // agent 0's target and its distance
   void shelter_rewards_env(int env, float* reward);  // SPEC §9.3
   void blueprint_rewards_env(int env, float* reward);  // SPEC §9.1; sets task_complete
+  // The food variants (SPEC §5.4): eating, health and respawn after a step; adds each agent's food reward.
+  void food_env(int env, float* reward, bool prep);
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).

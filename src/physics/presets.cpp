@@ -13,6 +13,8 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "sequential-lock") return WorldConfig::sequential_lock();
   if (name == "shelter") return WorldConfig::shelter();
   if (name == "blueprint") return WorldConfig::blueprint();
+  if (name == "food") return WorldConfig::food_game();
+  if (name == "dynamic-food") return WorldConfig::dynamic_food_game();
   std::string names;
   for (const char* n : kSceneNames) names += std::string(names.empty() ? "" : ", ") + n;
   throw ConfigError("scene = '" + name + "' is invalid: must be one of " + names);

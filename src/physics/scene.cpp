@@ -25,6 +25,7 @@ constexpr int kMaxAgents = 32;
 constexpr int kMaxBoxes = 32;
 constexpr int kMaxRamps = 16;
 constexpr int kMaxSites = 8;
+constexpr int kMaxFood = 32;
 constexpr int kMaxRooms = 8;
 constexpr int kMaxDoorSize = 10;
 constexpr int kMaxRoomWalls = kMaxRooms + 3;            // 4 outer walls + rooms - 1 interior walls
@@ -366,6 +367,18 @@ struct Request {
   double middle = kMiddleFraction;  // kMiddle: the fraction f
 };
 
+// A food item's request (SPEC §5.4): 1 cell, in the quadrant room, the middle fraction, or anywhere.
+Request food_request(const SceneConfig& config) {
+  Request req;
+  req.placement = config.layout == Layout::kQuadrant ? Placement::kQuadrant
+                  : config.food_middle > 0           ? Placement::kMiddle
+                                                     : Placement::kUniform;
+  req.middle = config.food_middle;
+  req.sx = req.sy = req.sz = kFoodSize;
+  req.z = 0.5 * kFoodSize;
+  return req;
+}
+
 // rejection_placement: up to `tries` proposals; the first whose cells are all free is jittered inside its
 // cells, marked and returned.
 bool place(const Request& req, int tries, Grid& grid, Rng& rng, Spawn& spawn, Cell& cell) {
@@ -414,7 +427,7 @@ const char* placement_region(Placement p) {
 }
 
 struct Counts {
-  int hiders = 0, seekers = 0, boxes = 0, elongated = 0, x_aligned = 0, ramps = 0, sites = 0;
+  int hiders = 0, seekers = 0, boxes = 0, elongated = 0, x_aligned = 0, ramps = 0, sites = 0, food = 0;
 };
 
 int draw(const IntRange& r, Rng& rng) {
@@ -431,8 +444,9 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   n.elongated = rng.uniform_int(std::min(config.elongated.min, elongated_hi), elongated_hi + 1);
   n.x_aligned = rng.uniform_int(0, n.elongated + 1);
   n.ramps = draw(config.ramps, rng);
-  n.sites =
-      config.sites.max > 0 ? draw(config.sites, rng) : 0;  // no draw without sites: other scenes' streams
+  // No draw without sites or food: other scenes keep their streams.
+  n.sites = config.sites.max > 0 ? draw(config.sites, rng) : 0;
+  n.food = config.food.max > 0 ? draw(config.food, rng) : 0;
 
   out.layout = config.layout;
   out.outer_walls = true;
@@ -445,6 +459,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.ramps.clear();
   out.has_target = false;
   out.sites.clear();
+  out.food.clear();
   out.num_hiders = n.hiders;
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
@@ -601,6 +616,25 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     }
     out.ramps.push_back(spawn);
   }
+
+  // Food (SPEC §5.4), after the ramps; the items after the first near it with food_together_radius.
+  Cell first_food;
+  const int food_cells =
+      std::min(kGridSize, static_cast<int>(std::ceil(config.food_together_radius / kCellSize - 1e-9)));
+  for (int f = 0; f < n.food; ++f) {
+    Request req = food_request(config);
+    if (f > 0 && config.food_together_radius > 0) {
+      req.placement = Placement::kCloseTo;
+      req.anchor = first_food;
+      req.radius_cells = food_cells;
+    }
+    if (!place(req, tries, grid, rng, spawn, cell)) {
+      fail = Failure{"food", f, "food item", 1, 1, req.placement, 0};
+      return false;
+    }
+    if (f == 0) first_food = cell;
+    out.food.push_back(spawn);
+  }
   return true;
 }
 
@@ -700,6 +734,14 @@ void SceneConfig::validate() const {
   check_range("elongated", elongated);
   check_range("ramps", ramps);
   check_range("sites", sites);
+  check_range("food", food);
+  if (food.max > kMaxFood) reject("food.max", food.max, "must be <= " + std::to_string(kMaxFood));
+  if (sites.max > 0 && food.max > 0)
+    reject("food.max", food.max, "must be 0 in a scene with construction sites (sites.max > 0)");
+  if (!(food_middle >= 0.0 && food_middle < 1.0))
+    reject("food_middle", food_middle, "must be in [0, 1) (0: the layout's placement)");
+  if (!(food_together_radius >= 0.0 && food_together_radius <= kFloorSize))
+    reject("food_together_radius", food_together_radius, "must be in [0, 6] m");
   if (sites.max > kMaxSites) reject("sites.max", sites.max, "must be <= " + std::to_string(kMaxSites));
   // Sums in 64 bits: the fields may hold anything a user typed.
   const int64_t min_agents = int64_t{hiders.min} + seekers.min,
@@ -765,7 +807,7 @@ void SceneConfig::validate() const {
   // Every placement function keeps objects within cells 1..28 on both axes (28 x 28 cells).
   const int arena_free = (kGridSize - 2) * (kGridSize - 2);
   const int arena_need = agent_cells * (hiders.max + seekers.max) + box_cells * boxes.max +
-                         ramp_cells * ramps.max + box_cells * sites.max;
+                         ramp_cells * ramps.max + box_cells * sites.max + food.max;
   if (arena_need > arena_free) {
     reject("hiders.max + seekers.max + boxes.max + ramps.max",
            hiders.max + seekers.max + boxes.max + ramps.max,
@@ -782,6 +824,7 @@ void SceneConfig::check_placeable() const {
   most.boxes = {boxes.max, boxes.max};
   most.ramps = {ramps.max, ramps.max};
   most.sites = {sites.max, sites.max};
+  most.food = {food.max, food.max};
   most.rooms = {rooms.max, rooms.max};
   most.target_diameter_min = target_diameter_max;
   const int elongated_hi = std::min(elongated.max, boxes.max);
@@ -823,6 +866,15 @@ void generate_scene(const SceneConfig& config, Rng& rng, Scene& out) {
         << " tries. Lower the counts (hiders, seekers, boxes, ramps) or raise max_tries_per_object.";
   }
   throw std::runtime_error(msg.str());
+}
+
+std::pair<double, double> food_respawn_spot(const SceneConfig& config, Rng& rng) {
+  const Request req = food_request(config);
+  const int c = footprint_cells(req.sx);
+  const Cell cell = propose_cell(req.placement, c, c, req.anchor, 0, req.room, req.middle, rng);
+  const double x = cell.i * kCellSize + rng.uniform(0.0, c * kCellSize - req.sx) + 0.5 * req.sx;
+  const double y = cell.j * kCellSize + rng.uniform(0.0, c * kCellSize - req.sy) + 0.5 * req.sy;
+  return {x, y};
 }
 
 }  // namespace hns::physics

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "physics/rng.hpp"
@@ -26,6 +27,7 @@ inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
 inline constexpr double kTargetHeight = 0.5;        // m, the shelter task's cylinder
 inline constexpr double kSiteSize = 0.5;            // m, a blueprint construction site's square (a cube's)
+inline constexpr double kFoodSize = 0.1;            // m, a food item's extent (SPEC §5.4: 1 x 1 cell)
 // Quadrant: q_size = int(0.5 * grid size), the room walls' row and column.
 inline constexpr int kQuadrantSize = 15;
 
@@ -70,6 +72,13 @@ struct SceneConfig {
   // uniform_placement_middle(0.85) (3 x 3 cells) before anything else, so nothing spawns on one. Not
   // physical: nothing collides with a site, and rays pass through it.
   IntRange sites{0, 0};
+  // Food (SPEC §5.4): items of kFoodSize placed after the ramps, 1 cell each; not physical. In the quadrant
+  // layout inside the room (quadrant_placement), else with food_middle > 0 by
+  // uniform_placement_middle(food_middle) (the paper's centred square), else uniformly; with
+  // food_together_radius > 0 the items after the first within ceil(r / 0.2) cells of it.
+  IntRange food{0, 0};
+  double food_middle = 0.0;
+  double food_together_radius = 0.0;  // m
   int max_tries_per_object = 10;  // rejection placement tries per object (SPEC §2.5)
   int max_regenerations = 1000;   // whole-scene rebuilds before giving up with an error
 
@@ -128,13 +137,19 @@ struct Scene {
   std::vector<Spawn> ramps;
   bool has_target = false;  // shelter: the cylinder, centre and full extents (sx = sy = diameter)
   Spawn target{};
-  std::vector<Spawn>
-      sites;              // blueprint: construction sites, centre at z = kSiteSize / 2, sx = sy = kSiteSize
+  // Blueprint's construction sites, centre at z = kSiteSize / 2, sx = sy = kSiteSize.
+  std::vector<Spawn> sites;
+  // Food items, centre at z = kFoodSize / 2, sx = sy = sz = kFoodSize.
+  std::vector<Spawn> food;
   int regenerations = 0;  // whole-scene rebuilds this scene needed
 };
 
 // Generates one scene from the stream. Reuses `out`'s capacity. Throws std::runtime_error if no valid
 // scene was found within config.max_regenerations rebuilds (impossible configurations fail validate()).
 void generate_scene(const SceneConfig& config, Rng& rng, Scene& out);
+
+// A new spot for a food item that respawns elsewhere (dynamic food): a cell drawn by the scene's food
+// placement (ignoring occupancy: boxes move during an episode), jittered like a spawn. Returns x, y (m).
+std::pair<double, double> food_respawn_spot(const SceneConfig& config, Rng& rng);
 
 }  // namespace hns::physics

@@ -292,6 +292,33 @@ WorldConfig WorldConfig::blueprint() {
   return c;
 }
 
+WorldConfig WorldConfig::food_game() {
+  WorldConfig c = full();
+  c.scene.food = {5, 5};
+  c.scene.food_middle = 0.25;
+  c.scene.food_together_radius = 0.25;
+  return c;  // FoodConfig's defaults are the full game's values (SPEC §5.4)
+}
+
+WorldConfig WorldConfig::dynamic_food_game() {
+  WorldConfig c = full();
+  c.scene.layout = Layout::kRandomWalls;
+  c.scene.rooms = {1, 1};
+  c.scene.prob_outside_walls = 0.0;  // no walls at all
+  c.scene.hiders = {3, 3};
+  c.scene.seekers = {2, 2};
+  c.scene.boxes = {8, 8};
+  c.scene.elongated = {8, 8};
+  c.scene.ramps = {0, 0};
+  c.obs_min_ramps = 1;  // the hide-and-seek policy's ramp slot, empty
+  c.scene.food = {1, 1};
+  c.scene.food_middle = 0.2;
+  c.food.max_health = 1.0;
+  c.food.respawn_steps = 1;
+  c.food.relocate = true;
+  return c;
+}
+
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
 }
@@ -332,6 +359,16 @@ void WorldConfig::validate() const {
         "must be >= 1 in the blueprint task (its construction sites)");
   check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
         "must be >= 1 in the blueprint task (its building blocks)");
+  check(scene.food.max == 0 || task == Task::kHideAndSeek, "food.max", scene.food.max,
+        "must be 0 in a transfer task (food is a variant of hide-and-seek)");
+  check(food.eat_radius > 0 && food.eat_radius <= 10, "food.eat_radius", food.eat_radius,
+        "must be in (0, 10] m");
+  check(food.max_health > 0 && food.max_health <= 1e6, "food.max_health", food.max_health,
+        "must be in (0, 1000000] units");
+  check(food.respawn_steps >= 0 && food.respawn_steps <= 1000000, "food.respawn_steps", food.respawn_steps,
+        "must be in [0, 1000000] (0: never)");
+  check(std::isfinite(food.reward_scale) && std::abs(food.reward_scale) <= 1e3, "food.reward_scale",
+        food.reward_scale, "must be in [-1000, 1000]");
   check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
         "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");

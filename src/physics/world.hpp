@@ -37,6 +37,22 @@ struct PhysicsConfig {
   int sleep_substeps = 5;
 };
 
+// The food variants' eating rules (SPEC §5.4; the scene's food count, placement and clustering are in
+// SceneConfig). Applied by the batch layer after each step: a hider eats 1 unit per step of every item with
+// health left within eat_radius (3-D, from its centre) that it saw in the previous observation while no
+// hider was seen, outside the preparation phase (seekers never eat); if the hiders at one item would eat
+// more than it has, they share what is left. An item eaten up stays empty for respawn_steps steps, then its
+// health resets (and, with relocate, it moves to a new spot of its placement region: dynamic food).
+struct FoodConfig {
+  double eat_radius = 0.5;    // m (SPEC food_radius)
+  double max_health = 40.0;   // units per item
+  int respawn_steps = 5;      // 0 = an eaten-up item never comes back
+  bool relocate = false;      // dynamic food
+  bool joint_mean = true;     // each hider gets the hiders' mean of units eaten (false: its own, 'selfish')
+  double reward_scale = 1.0;  // reward per unit
+  bool eat_when_caught = false;  // true: hiders eat even while a hider is seen
+};
+
 // Everything a world needs. Presets: WorldConfig::quadrant(), WorldConfig::full().
 struct WorldConfig {
   SceneConfig scene = SceneConfig::quadrant();
@@ -74,6 +90,8 @@ struct WorldConfig {
   // The "hider" self feature: -1 = the agent's team (1 for hiders); 0 or 1 = that constant (SPEC §9:
   // blueprint and shelter pass 0).
   int obs_hider = -1;
+  // The food variants (the scene's food items; without any, nothing here applies).
+  FoodConfig food;
   bool is_lock_task() const {
     return task == Task::kLockBox || task == Task::kLockReturn || task == Task::kSequentialLock;
   }
@@ -96,6 +114,12 @@ struct WorldConfig {
   static WorldConfig shelter();
   // SPEC §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
   static WorldConfig blueprint();
+  // The paper's food variants of the full game (docs/food.md): 5 items of 40 units close together in the
+  // centred square of 1/4 the arena's side, respawning 5 steps after they are eaten up ("food"); and one item
+  // of 1 unit that moves to a new spot of the centred square of 1/5 the side when eaten, with 3 hiders,
+  // 2 seekers and 8 elongated boxes in an arena without walls ("dynamic-food").
+  static WorldConfig food_game();
+  static WorldConfig dynamic_food_game();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;

@@ -16,7 +16,7 @@ nn::ObsShape obs_shape(const batch::Layout& L) {
   o.max_ramps = L.max_ramps;
   o.ramp_features = batch::Layout::kRampFeatures;
   o.max_sites = L.max_sites;
-  o.site_features = L.max_sites > 0 ? batch::Layout::kSiteFeatures : 0;
+  o.site_features = L.max_sites > 0 ? L.site_features : 0;
   o.lidar_rays = batch::Layout::kLidar;
   return o;
 }

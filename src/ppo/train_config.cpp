@@ -360,7 +360,7 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + L.max_sites + 1);
   nn::NetConfig net = nn::net_preset(model);
   net.obs.max_sites = L.max_sites;
-  net.obs.site_features = L.max_sites > 0 ? batch::Layout::kSiteFeatures : 0;
+  net.obs.site_features = L.max_sites > 0 ? L.site_features : 0;
   nn::ParamLayout layout;
   nn::EntityNet(net, nn::NetHead::kPolicy, layout, "policy");
   nn::EntityNet(net, nn::NetHead::kValue, layout, "value");

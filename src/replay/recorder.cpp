@@ -73,6 +73,13 @@ void capture(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, int t,
     out[4] = act.lock;
   }
   ep.prep[f] = t <= ep.prep_steps ? 1 : 0;
+  const int mf = sim.layout().max_food;
+  for (int k = 0; k < ep.num_food; ++k) {
+    const size_t i = size_t(env) * mf + k;
+    float* out = &ep.food[(f * ep.num_food + k) * 4];
+    std::copy_n(s.food_pos.data() + 3 * i, 3, out);
+    out[3] = s.food_health[i];
+  }
 }
 
 // Starts recording the env's current episode: header from its scene, frame 0 from the reset state.
@@ -95,6 +102,7 @@ void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordC
   ep.num_boxes = int(scene.boxes.size());
   ep.num_elongated = scene.num_elongated;
   ep.num_ramps = int(scene.ramps.size());
+  ep.num_food = int(scene.food.size());
   ep.outer_walls = scene.outer_walls;
   for (const phys::StaticBox& w : scene.wall_boxes) ep.walls.push_back({w.cx, w.cy, w.cz, w.hx, w.hy, w.hz});
   ep.cylinders.clear();

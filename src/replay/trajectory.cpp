@@ -62,6 +62,7 @@ void for_each_block(Episode& ep, F&& f) {
   f("reward", ep.reward, Shape{n, a}, "frames x agents");
   f("prep", ep.prep, Shape{n}, "frames");
   f("action", ep.action, Shape{n, a, kActionFields}, "frames x agents x 5");
+  f("food", ep.food, Shape{n, ep.num_food, 4}, "frames x food x 4");  // absent before the food variants
 }
 
 int64_t elements(const Shape& shape) {
@@ -140,6 +141,7 @@ std::string episode_chunk(const TrajectoryEpisode& ep) {
   h["num_boxes"] = ep.num_boxes;
   h["num_elongated"] = ep.num_elongated;
   h["num_ramps"] = ep.num_ramps;
+  h["num_food"] = ep.num_food;
   h["outer_walls"] = ep.outer_walls;
   h["walls"] = ep.walls;
   h["cylinders"] = ep.cylinders;
@@ -358,6 +360,7 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
   ep.num_boxes = int(f.integer("num_boxes", 0, kTrajectoryMaxObjects));
   ep.num_elongated = int(f.integer("num_elongated", 0, ep.num_boxes));
   ep.num_ramps = int(f.integer("num_ramps", 0, kTrajectoryMaxObjects - ep.num_boxes));
+  if (f.has("num_food")) ep.num_food = int(f.integer("num_food", 0, kTrajectoryMaxObjects));  // 0 before food
   ep.outer_walls = f.boolean("outer_walls");
   ep.walls = f.rows<6>("walls", -1);
   if (f.has("cylinders")) ep.cylinders = f.rows<4>("cylinders", -1);  // absent before the shelter task
@@ -401,6 +404,10 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     using T = typename std::decay_t<decltype(data)>::value_type;
     const std::string bwhere = where + ": block \"" + name + "\"";
     auto it = by_name.find(name);
+    if (it == by_name.end() && elements(shape) == 0 && std::string_view(name) == "food") {
+      data.clear();  // files written before the food variants have no food block
+      return;
+    }
     if (it == by_name.end()) throw TrajectoryError(bwhere + ": missing");
     const Fields bf(*it->second, bwhere);
     if (bf.string("dtype") != DType<T>::kName) {
@@ -460,6 +467,18 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     return std::abs(v) <= kTrajectoryMaxReward ? nullptr : "a finite number within ±10000";
   });
   check_values(ep.prep, 1, where, "prep", flag);
+  for (size_t i = 0; i < ep.food.size(); ++i) {
+    const float v = ep.food[i];
+    const bool ok =
+        i % 4 == 3 ? v >= 0 && v <= 1e6f : std::abs(v) <= (i % 4 == 2 ? kTrajectoryMaxZ : kTrajectoryMaxXY);
+    if (!ok) {
+      std::ostringstream msg;
+      msg << where << ": block \"food\": frame " << i / (size_t(ep.num_food) * 4) << ", element "
+          << i % (size_t(ep.num_food) * 4) << ": value " << v << ", expected "
+          << (i % 4 == 3 ? "units left in [0, 1000000]" : "a finite position within the bounds");
+      throw TrajectoryError(msg.str());
+    }
+  }
   for (size_t i = 0; i < ep.action.size(); ++i) {
     const int field = int(i % kActionFields);
     const int limit = field < 3 ? 10 : 1;
@@ -492,6 +511,7 @@ void TrajectoryEpisode::resize(int n) {
   reward.assign(f * a, 0.0f);
   prep.assign(f, 0);
   action.assign(f * a * kActionFields, 0);
+  food.assign(f * size_t(num_food) * 4, 0.0f);
 }
 
 std::string encode_trajectory(const TrajectoryFile& file) {

@@ -61,6 +61,7 @@ struct TrajectoryEpisode {
   int num_boxes = 0;  // objects: boxes first, then ramps
   int num_elongated = 0;
   int num_ramps = 0;
+  int num_food = 0;  // food items (the food variants)
   bool outer_walls = true;
   std::vector<std::array<double, 6>> walls;  // static boxes: centre x, y, z, half extents x, y, z (m)
   // Static cylinders standing on the floor: axis x, y, radius, height (m).
@@ -87,6 +88,7 @@ struct TrajectoryEpisode {
   std::vector<float> reward;          // reward of the step that produced the frame, 0 at frame 0 (frames x A)
   std::vector<uint8_t> prep;          // 1 if the frame lies in the preparation phase (frames)
   std::vector<uint8_t> action;        // action of the step that produced the frame (frames x A x 5)
+  std::vector<float> food;            // food items: x, y, z (m), units left (frames x F x 4)
 
   int num_agents() const { return num_hiders + num_seekers; }
   int num_objects() const { return num_boxes + num_ramps; }

@@ -435,12 +435,12 @@ TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
     const Scene& scene = sim.world(e).scene();
     for (int k = 0; k < L.max_sites; ++k) {
       const size_t slot = size_t(e) * L.max_agents * L.max_sites + k;  // agent 0's view of site k
-      const float* f = st.obs_sites.data() + slot * Layout::kSiteFeatures;
+      const float* f = st.obs_sites.data() + slot * Layout::kConstructionSiteFeatures;
       const bool exists = k < int(scene.sites.size());
       EXPECT_EQ(st.mask_sites[slot], exists ? 1 : 0);
       EXPECT_EQ(st.value_mask_sites[slot], exists ? 1 : 0);
       if (!exists) {
-        for (int i = 0; i < Layout::kSiteFeatures; ++i) EXPECT_EQ(f[i], 0.0f);
+        for (int i = 0; i < Layout::kConstructionSiteFeatures; ++i) EXPECT_EQ(f[i], 0.0f);
         continue;
       }
       const Spawn& site = scene.sites[size_t(k)];

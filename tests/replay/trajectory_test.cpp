@@ -156,7 +156,7 @@ TEST(Trajectory, BlocksAreAlignedAndDocumented) {
     std::memcpy(&len, bytes.data() + pos, 4);
     EXPECT_EQ((pos + 4 + len) % 8, 0u) << "payload of the chunk at byte " << pos << " is not 8-byte aligned";
     if (c.header["kind"] == "episode") {
-      EXPECT_EQ(c.header["blocks"].size(), 13u);
+      EXPECT_EQ(c.header["blocks"].size(), 14u);
       for (const json& b : c.header["blocks"]) EXPECT_EQ(b["offset"].get<size_t>() % 8, 0u) << b.dump();
       EXPECT_EQ(c.header["version"], kTrajectoryVersion);
       EXPECT_TRUE(c.header.contains("walls"));
@@ -315,6 +315,49 @@ TEST(Trajectory, CylindersRoundTripAreOptionalAndChecked) {
   EXPECT_TRUE(decode_trajectory(dropped).episodes[0].cylinders.empty());
   file.episodes[0].cylinders = {{3.0, 2.9, 0.0, 0.5}};
   expect_error(encode_trajectory(file), {"field \"cylinders\"", "radius or height"});
+}
+
+// Blueprint's construction sites travel in the header and the food variants' items in a block of their
+// own; files written before either existed (no "sites", no "num_food", no "food" block) read as having none;
+// a site without size or an item with negative units is refused.
+TEST(Trajectory, SitesAndFoodRoundTripAreOptionalAndChecked) {
+  TrajectoryFile file;
+  file.episodes.push_back(make_episode(2, 1, 2, 0, 4, 14));
+  TrajectoryEpisode& ep = file.episodes[0];
+  ep.scene = "dynamic-food";
+  ep.sites = {{2.0, 3.0, 0.5}};
+  ep.num_food = 2;
+  ep.food.assign(size_t(ep.frames) * 2 * 4, 0.0f);
+  for (size_t i = 0; i < ep.food.size(); ++i)
+    ep.food[i] = float(i % 4 == 3 ? 40 - int(i / 8) : 2.5 + 0.01 * i);
+  const std::string bytes = encode_trajectory(file);
+  EXPECT_EQ(decode_trajectory(bytes), file);
+
+  ep.sites.clear();
+  ep.num_food = 0;
+  ep.food.clear();
+  std::vector<RawChunk> chunks = split(encode_trajectory(file));
+  json& h = chunks.at(1).header;
+  ASSERT_TRUE(h.contains("sites") && h.contains("num_food"));
+  h.erase("sites");
+  h.erase("num_food");
+  json kept = json::array();
+  for (const json& b : h["blocks"])
+    if (b["name"] != "food") kept.push_back(b);
+  ASSERT_EQ(kept.size(), h["blocks"].size() - 1);
+  h["blocks"] = kept;
+  const TrajectoryEpisode old = decode_trajectory(join(chunks)).episodes[0];
+  EXPECT_TRUE(old.sites.empty());
+  EXPECT_EQ(old.num_food, 0);
+  EXPECT_TRUE(old.food.empty());
+
+  ep.sites = {{2.0, 3.0, 0.0}};
+  expect_error(encode_trajectory(file), {"field \"sites\"", "edge <= 0"});
+  ep.sites.clear();
+  ep.num_food = 1;
+  ep.food.assign(size_t(ep.frames) * 4, 1.0f);
+  ep.food[7] = -1.0f;
+  expect_error(encode_trajectory(file), {"block \"food\"", "frame 1", "units left"});
 }
 
 // Version 2 episodes carry a checksum of their payload: any flipped payload byte is refused, naming it.
