@@ -413,6 +413,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
                           {&totals.t_targets, m.t_targets},
                           {&totals.t_backward, m.t_backward},
                           {&totals.t_optimizer, m.t_optimizer},
+                          {&totals.t_intrinsic, m.t_intrinsic},
                           {&totals.t_other, m.t_other},
                           {&totals.t_comm, m.t_comm}}) {
       *sum += v;
@@ -476,6 +477,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
         ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
         (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
         totals.t_targets * w, totals.t_other * w);
+    if (totals.t_intrinsic > 0)
+      std::printf("  RND's networks (forward passes and predictor steps), besides the above: %.1f%%\n",
+                  totals.t_intrinsic * w);
     if (comm.size() > 1)
       std::printf("  communication with and waiting for the other ranks (inside the phases above): %.1f%%\n",
                   totals.t_comm * w);

@@ -31,7 +31,7 @@ EntityNet::Buffers::Buffers(const NetConfig& c, int outputs_, int sequences_, in
     : cfg(c), sequences(sequences_), steps(steps_), outputs(outputs_) {
   const int rows = sequences * steps;
   sa = SelfAttention::Buffers(rows, cfg.obs.num_entities(), cfg.embed, cfg.heads);
-  lstm = Lstm::Buffers(sequences, steps, cfg.dense, cfg.lstm);
+  if (cfg.lstm > 0) lstm = Lstm::Buffers(sequences, steps, cfg.dense, cfg.lstm);
 }
 
 void EntityNet::Buffers::bind(Arena& arena) {
@@ -60,12 +60,13 @@ void EntityNet::Buffers::bind(Arena& arena) {
   dense_a = arena.take(rows * cfg.dense);
   dense_n = arena.take(rows * cfg.dense);
   dense_stats = arena.take(rows * 2);
-  lstm.bind(arena);
-  out_n = arena.take(rows * cfg.lstm);
+  const size_t u = cfg.lstm > 0 ? cfg.lstm : cfg.dense;  // the width the output layer norm sees
+  if (cfg.lstm > 0) lstm.bind(arena);
+  out_n = arena.take(rows * u);
   out_stats = arena.take(rows * 2);
   head = arena.take(rows * outputs);
-  d_out_n = arena.take(rows * cfg.lstm);
-  d_h = arena.take(rows * cfg.lstm);
+  d_out_n = arena.take(rows * u);
+  d_h = arena.take(rows * u);
   d_dense_n = arena.take(rows * cfg.dense);
   d_cat_n = arena.take(rows * 2 * d);
   d_cat = arena.take(rows * 2 * d);
@@ -78,7 +79,7 @@ EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, co
     : cfg_(cfg), head_kind_(head) {
   const ObsShape& o = cfg.obs;
   HNS_NN_CHECK(o.self_features > 0 && o.lidar_rays > 0 && o.max_agents >= 1, "observation shape is empty");
-  HNS_NN_CHECK(cfg.embed > 0 && cfg.dense > 0 && cfg.lstm > 0, "network widths must be positive");
+  HNS_NN_CHECK(cfg.embed > 0 && cfg.dense > 0 && cfg.lstm >= 0, "network widths must be positive");
   const std::string p = prefix + "/";
   conv_ = CircConv1d(layout, p + "lidar_conv", o.lidar_rays, 1, cfg.lidar_filters, cfg.lidar_kernel);
   const int m = main_width();
@@ -96,14 +97,17 @@ EntityNet::EntityNet(const NetConfig& cfg, NetHead head, ParamLayout& layout, co
   cat_norm_ = LayerNorm(layout, p + "cat_norm", 2 * cfg.embed);
   dense_ = Dense(layout, p + "dense", 2 * cfg.embed, cfg.dense, Activation::kRelu);
   dense_norm_ = LayerNorm(layout, p + "dense_norm", cfg.dense);
-  lstm_ = Lstm(layout, p + "lstm", cfg.dense, cfg.lstm);
-  out_norm_ = LayerNorm(layout, p + "out_norm", cfg.lstm);
+  const int u = out_width();
+  if (cfg.lstm > 0) lstm_ = Lstm(layout, p + "lstm", cfg.dense, cfg.lstm);
+  out_norm_ = LayerNorm(layout, p + "out_norm", u);
   if (head == NetHead::kPolicy) {
     int logits = 0;
     for (int s : cfg.action_heads) logits += s;
-    head_ = Dense(layout, p + "logits", cfg.lstm, logits, Activation::kNone, {Init::kNormc, 0.01f});
+    head_ = Dense(layout, p + "logits", u, logits, Activation::kNone, {Init::kNormc, 0.01f});
+  } else if (head == NetHead::kValue) {
+    head_ = Dense(layout, p + "value", u, 1, Activation::kNone);
   } else {
-    head_ = Dense(layout, p + "value", cfg.lstm, 1, Activation::kNone);
+    head_ = Dense(layout, p + "projection", u, kRndOutputs, Activation::kNone);
   }
 }
 
@@ -133,7 +137,7 @@ double EntityNet::forward_flops(int rows) const {
   if (o.max_sites > 0) f += sites_embed_.flops(rows, double(rows) * o.max_sites);
   const double e = o.num_entities();
   f += attention_.flops(rows * e, rows * e * e);
-  f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
+  f += dense_.flops(rows) + (cfg_.lstm > 0 ? lstm_.flops(rows) : 0.0) + head_.flops(rows);
   return f;
 }
 
@@ -157,7 +161,7 @@ double EntityNet::forward_flops_used(const NetInputs& in, int rows) const {
     pairs += n * n;
   }
   f += attention_.flops(entities, pairs);
-  f += dense_.flops(rows) + lstm_.flops(rows) + head_.flops(rows);
+  f += dense_.flops(rows) + (cfg_.lstm > 0 ? lstm_.flops(rows) : 0.0) + head_.flops(rows);
   return f;
 }
 
@@ -269,11 +273,16 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   dense_norm_.forward_fused(params, dense_a, params + dense_.b_offset(), Activation::kRelu, dense_a,
                             Mat(b.dense_n, rows, cfg_.dense), b.dense_stats);
 
-  // LSTM, layer norm, head.
-  lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, b.reset, state_in, b.lstm,
-                state_out, lstm_packed);
-  out_norm_.forward(params, CMat(b.lstm.h, rows, cfg_.lstm), Mat(b.out_n, rows, cfg_.lstm), b.out_stats);
-  head_.forward(params, CMat(b.out_n, rows, cfg_.lstm), Mat(b.head, rows, num_outputs()));
+  // LSTM (if any), layer norm, head.
+  const int u = out_width();
+  const float* last_hidden = b.dense_n;
+  if (cfg_.lstm > 0) {
+    lstm_.forward(params, CMat(b.dense_n, rows, cfg_.dense), sequences, steps, b.reset, state_in, b.lstm,
+                  state_out, lstm_packed);
+    last_hidden = b.lstm.h;
+  }
+  out_norm_.forward(params, CMat(last_hidden, rows, u), Mat(b.out_n, rows, u), b.out_stats);
+  head_.forward(params, CMat(b.out_n, rows, u), Mat(b.head, rows, num_outputs()));
 }
 
 void EntityNet::backward(const float* params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
@@ -284,14 +293,20 @@ void EntityNet::backward(const float* params, float* grads, int sequences, int s
   assert(sequences <= b.sequences && steps == b.steps && d_output.rows == rows);
   const int s = o.self_features, l = o.lidar_rays, m = main_width(), d = cfg_.embed, e = o.num_entities();
   const int na = o.num_other_agents(), nb = o.max_boxes, nr = o.max_ramps, nc = o.max_sites;
-  const int u = cfg_.lstm, h = cfg_.dense;
+  const int u = out_width(), h = cfg_.dense;
 
-  // Head, output layer norm, LSTM (through time), dense + ReLU + layer norm, concat layer norm.
+  // Head, output layer norm, LSTM (through time; without one, the layer norm's input is the dense layer's
+  // output), dense + ReLU + layer norm, concat layer norm.
   head_.backward_preact(params, grads, CMat(b.out_n, rows, u), d_output, Mat(b.d_out_n, rows, u), false);
-  out_norm_.backward(params, grads, CMat(b.lstm.h, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
-                     Mat(b.d_h, rows, u));
-  lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, b.reset, b.lstm,
-                 CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h), lstm_packed);
+  if (cfg_.lstm > 0) {
+    out_norm_.backward(params, grads, CMat(b.lstm.h, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
+                       Mat(b.d_h, rows, u));
+    lstm_.backward(params, grads, CMat(b.dense_n, rows, h), sequences, steps, b.reset, b.lstm,
+                   CMat(b.d_h, rows, u), Mat(b.d_dense_n, rows, h), lstm_packed);
+  } else {
+    out_norm_.backward(params, grads, CMat(b.dense_n, rows, u), b.out_stats, CMat(b.d_out_n, rows, u),
+                       Mat(b.d_dense_n, rows, h));
+  }
   const Mat dz(b.d_dense_n, rows, h);
   dense_norm_.backward_fused(params, grads, CMat(b.dense_a, rows, h), b.dense_stats, Activation::kRelu, dz,
                              dz, nullptr);

@@ -59,7 +59,7 @@ struct NetConfig {
   int embed = 128;                                     // entity embedding width = attention width (n_embd)
   int heads = 4;                                       // attention heads (embed / heads features each)
   int dense = 256;                                     // dense layer after pooling
-  int lstm = 256;                                      // LSTM units
+  int lstm = 256;                                      // LSTM units; 0: no LSTM (the RND networks)
   std::vector<int> action_heads = {11, 11, 11, 2, 2};  // choices per categorical action head
 };
 
@@ -87,7 +87,10 @@ struct NetInputs {
   const int32_t* index = nullptr;  // [rows] array row of each row; null = the identity
 };
 
-enum class NetHead { kPolicy, kValue };
+// The output layer: the policy's logits, the value, or RND's 64-wide random projection (kRnd, paper's
+// appendix: the value network without its LSTM, projecting to 64 outputs).
+enum class NetHead { kPolicy, kValue, kRnd };
+inline constexpr int kRndOutputs = 64;
 
 class EntityNet {
  public:
@@ -140,6 +143,8 @@ class EntityNet {
   NetHead head_kind() const { return head_kind_; }
   int num_outputs() const { return head_.out(); }
   int main_width() const { return cfg_.obs.self_features + conv_.out_width(); }
+  // Width of the last hidden layer: the LSTM's, or the dense layer's without one.
+  int out_width() const { return cfg_.lstm > 0 ? cfg_.lstm : cfg_.dense; }
   // Workspace for chunks of up to `sequences` sequences of `steps` steps.
   Work make_workspace(int sequences, int steps) const { return Work(cfg_, num_outputs(), sequences, steps); }
   // Multiply-add flops of one forward pass over `rows` agent-steps (GEMMs, conv and attention products);
@@ -150,7 +155,8 @@ class EntityNet {
   // only (in.index null).
   double forward_flops_used(const NetInputs& in, int rows) const;
 
-  // Forward over sequences x steps rows. state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
+  // Forward over sequences x steps rows (without an LSTM every row is on its own: any split will do).
+  // state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
   // state_in null means zeros, state_out null means not written. Outputs: output(ws).
   // lstm_packed: the LSTM's recurrent kernel packed by pack_lstm() for these params (null: packed per call).
   void forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences, int steps,

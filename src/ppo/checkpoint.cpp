@@ -167,6 +167,15 @@ std::string Trainer::checkpoint_payload() const {
       w.put_array(n.data(), n.size());
     }
   }
+  // Random network distillation's predictor and its optimiser (only with intrinsic = rnd; the target is the
+  // seed's).
+  if (rnd_) {
+    const size_t rf = rnd_->predictor().buffer_floats();
+    w.put_array(rnd_->predictor().values(), rf);
+    w.put_array(rnd_->optimizer().m().data(), rf);
+    w.put_array(rnd_->optimizer().v().data(), rf);
+    w.put(rnd_->optimizer().steps());
+  }
 
   return w.bytes();
 }
@@ -225,6 +234,8 @@ struct Trainer::CheckpointState {
   nn::ObsShape shape;      // the saved run's observation shape
   ScalarNormalizer value_norm;
   std::vector<std::vector<std::pair<uint64_t, uint32_t>>> counts;  // intrinsic = count: per env of the run
+  nn::FloatBuffer rnd_values, rnd_m, rnd_v;  // intrinsic = rnd: the predictor and its Adam moments
+  int64_t rnd_steps = 0;
 };
 
 Trainer::CheckpointState Trainer::read_checkpoint(
@@ -292,6 +303,16 @@ Trainer::CheckpointState Trainer::read_checkpoint(
       for (size_t i = 0; i < n; ++i) env[i] = {keys[i], counts[i]};
     }
   }
+  if (saved.intrinsic == "rnd") {
+    const size_t rf = Rnd::predictor_floats(saved_net);
+    st.rnd_values.resize(rf);
+    st.rnd_m.resize(rf);
+    st.rnd_v.resize(rf);
+    r.get_array(st.rnd_values.data(), rf, "the RND predictor");
+    r.get_array(st.rnd_m.data(), rf, "the RND predictor's first moment");
+    r.get_array(st.rnd_v.data(), rf, "the RND predictor's second moment");
+    st.rnd_steps = r.get<int64_t>();
+  }
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
   return st;
 }
@@ -323,6 +344,15 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
   value_norm_ = st.value_norm;
   if (counts_ && mode == LoadMode::kResume) counts_->restore(st.counts);
+  if (rnd_ && mode == LoadMode::kResume) {
+    const size_t rf = rnd_->predictor().buffer_floats();
+    if (st.rnd_values.size() != rf)
+      throw std::logic_error("Trainer::load: an RND predictor of another layout");
+    std::memcpy(rnd_->predictor().values(), st.rnd_values.data(), rf * sizeof(float));
+    std::memcpy(rnd_->optimizer().m().data(), st.rnd_m.data(), rf * sizeof(float));
+    std::memcpy(rnd_->optimizer().v().data(), st.rnd_v.data(), rf * sizeof(float));
+    rnd_->optimizer().set_steps(st.rnd_steps);
+  }
 }
 
 namespace {

@@ -48,6 +48,7 @@ void visit_fields(Config& c, F&& f) {
   f("count_state", c.count_state, true);
   f("count_scale", c.count_scale, true);
   f("extrinsic_coef", c.extrinsic_coef, true);
+  f("rnd_scale", c.rnd_scale, true);
   f("gamma", c.gamma, true);
   f("lambda", c.lambda, true);
   f("init_from", c.init_from, true);
@@ -247,10 +248,10 @@ std::string TrainConfig::to_json() const {
     if (init_from.empty() && std::string_view(name).substr(0, 5) == "init_") return;
     // Likewise a run without an intrinsic reward writes none of its keys.
     const std::string_view n(name);
-    const bool intrinsic_defaults =
-        intrinsic == "none" && count_state == "box_pos" && count_scale == 0.1 && extrinsic_coef == 1.0;
-    if (intrinsic_defaults &&
-        (n == "intrinsic" || n == "count_state" || n == "count_scale" || n == "extrinsic_coef"))
+    const bool intrinsic_defaults = intrinsic == "none" && count_state == "box_pos" && count_scale == 0.1 &&
+                                    extrinsic_coef == 1.0 && rnd_scale == 1.0;
+    if (intrinsic_defaults && (n == "intrinsic" || n == "count_state" || n == "count_scale" ||
+                               n == "extrinsic_coef" || n == "rnd_scale"))
       return;
     out += first ? "  " : ",\n  ";
     first = false;
@@ -282,6 +283,7 @@ void TrainConfig::merge_run_json(std::string_view text, const std::string& origi
   count_state = "box_pos";
   count_scale = 0.1;
   extrinsic_coef = 1.0;
+  rnd_scale = 1.0;
   init_heads = 1;
   merge_json(text, origin);
 }
@@ -428,7 +430,9 @@ void TrainConfig::validate() const {
   check(
       init_optimizer == 0 || init_value == 1, "init_optimizer", init_optimizer,
       "must be 0 when init_value is 0 (Adam's state covers both networks; a fresh value net starts it over)");
-  check(intrinsic == "none" || intrinsic == "count", "intrinsic", intrinsic, "must be none or count");
+  check(intrinsic == "none" || intrinsic == "count" || intrinsic == "rnd", "intrinsic", intrinsic,
+        "must be none, count or rnd");
+  check(rnd_scale >= 0 && rnd_scale <= 100, "rnd_scale", rnd_scale, "must be in [0, 100]");
   check(count_state == "box_pos" || count_state == "box_full" || count_state == "full", "count_state",
         count_state, "must be one of box_pos, box_full, full");
   check(count_scale >= 0 && count_scale <= 100, "count_scale", count_scale, "must be in [0, 100]");

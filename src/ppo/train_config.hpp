@@ -45,15 +45,18 @@ struct TrainConfig {
   double value_coef = 1.0;  // weight of 0.5·mean(((V - G)/std)²)
   double grad_clip = 5.0;   // global gradient-norm clip (0 = off)
   double weight_decay = 0.0;
-  // Intrinsic motivation (the paper's baselines, docs/transfer.md): "none" or "count" (count-based
+  // Intrinsic motivation (the paper's baselines, docs/transfer.md): "none", "count" (count-based
   // exploration: count_scale / √N(S) per env step for the N-th visit of the hashed state S, counted per env,
-  // given to every agent of the env); count_state: box_pos | box_full | full (the paper's three state
-  // representations). The reward trained on is extrinsic_coef x the game's + the intrinsic one; metrics log
-  // them apart (hider_reward and seeker_reward stay the game's, intrinsic_reward is the intrinsic return).
+  // given to every agent of the env; count_state: box_pos | box_full | full, the paper's three state
+  // representations) or "rnd" (random network distillation: rnd_scale x the predictor's squared error on the
+  // observation an agent's step reached, per agent). The reward trained on is extrinsic_coef x the game's +
+  // the intrinsic one; metrics log them apart (hider_reward and seeker_reward stay the game's,
+  // intrinsic_reward is the intrinsic return).
   std::string intrinsic = "none";
   std::string count_state = "box_pos";
   double count_scale = 0.1;
   double extrinsic_coef = 1.0;
+  double rnd_scale = 1.0;
   double gamma = 0.998;
   double lambda = 0.95;
   // Start (Trainer::initialize_from, `hns train --init-from`): a checkpoint of the same model whose scene has

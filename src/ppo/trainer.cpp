@@ -140,6 +140,7 @@ std::string IterationMetrics::to_json() const {
   add("time_targets", "%.4f", t_targets);
   add("time_backward", "%.4f", t_backward);
   add("time_optimizer", "%.4f", t_optimizer);
+  add("time_intrinsic", "%.4f", t_intrinsic);
   add("time_other", "%.4f", t_other);
   add("time_comm", "%.4f", t_comm);
   add("unstable_resets", "%lld", static_cast<long long>(unstable_resets));
@@ -196,6 +197,14 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
     }
     count_hasher_ = std::make_unique<CountHasher>(parse_count_state(cfg_.count_state), cfg_.seed);
     counts_ = std::make_unique<StateCounts>(cfg_.envs, cfg_.count_scale);
+  }
+  if (cfg_.intrinsic == "rnd") {
+    // The predictor is trained on this process's rollout: one process, like the counts.
+    if (R > 1) {
+      throw physics::ConfigError("intrinsic = rnd runs in one process (" + std::to_string(R) +
+                                 " ranks given): its predictor network learns from one rollout");
+    }
+    rnd_ = std::make_unique<Rnd>(nc, cfg_.seed, float(cfg_.lr));
   }
   intrinsic_return_.assign(size_t(env1_ - env0_), 0.0);
 
@@ -299,7 +308,7 @@ IterationMetrics Trainer::iterate() {
     m.t_targets += seconds_since(t_learn);
     mark("targets", t_learn);
     update(m);
-    m.t_learn = seconds_since(t_learn);
+    m.t_learn = seconds_since(t_learn) + m.t_intrinsic;
     // The observation statistics (summed during the rollout) move after the update, so that a rollout and
     // the update of its data see the same normalisation.
     const Clock::time_point t_obs = Clock::now();
@@ -454,6 +463,12 @@ void Trainer::rollout(IterationMetrics& m) {
 
   for (int e = 0; e < E; ++e)
     b.block_obs_sums[size_t(block_of[size_t(e)])].merge(b.episode_obs_sums[size_t(e)]);
+  if (rnd_) {
+    const Clock::time_point tr = Clock::now();
+    rnd_rewards(block_of);
+    m.t_intrinsic = seconds_since(tr);
+    mark("rnd", tr);
+  }
 
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
   // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh. Every
@@ -485,6 +500,41 @@ void Trainer::rollout(IterationMetrics& m) {
                                                 & m.intrinsic_reward};
     for (int k = 1; k < kBlockEpisodeValues; ++k) *dst[k - 1] = totals[k] / episodes;
   }
+}
+
+// Random network distillation (intrinsic = rnd): the reward of an agent's step is rnd_scale x the prediction
+// error of the observation it reached within its episode (an episode's last step reaches none: 0), added to
+// the step's reward and, as the mean over the env's real agents, to its episodes' intrinsic return. Then the
+// predictor takes `minibatches` Adam steps on the rollout's learned rows (row i in minibatch i mod
+// minibatches), so the states just visited pay less next time.
+void Trainer::rnd_rewards(const std::vector<int>& block_of) {
+  Buffers& b = *buf_;
+  const int T = rollout_steps_, G = rows_, A = sim_->layout().max_agents;
+  const size_t rows = size_t(T) * G;
+  std::vector<float> err(rows);
+  const nn::ObsBatch obs = b.obs.batch();
+  rnd_->errors(nn::ObsNormView::identity(), obs, rows, err.data());
+  const float scale = float(cfg_.rnd_scale);
+  for (int t = 0; t + 1 < T; ++t) {
+    for (int g = 0; g < G; ++g) {
+      const size_t i = size_t(t) * G + g;
+      if (b.mask[i] == 0 || b.last[i] != 0) continue;
+      const float bonus = scale * err[i + size_t(G)];
+      b.reward[i] += bonus;
+      const int e = g / A;
+      int real = 0;
+      for (int a = 0; a < A; ++a) real += b.mask[size_t(t) * G + size_t(e) * A + a];
+      b.block_episodes[size_t(block_of[size_t(e)]) * kBlockEpisodeValues + kBlockEpisodeValues - 1] +=
+          double(bonus) / real;
+    }
+  }
+  std::vector<std::vector<int32_t>> batches(size_t(cfg_.minibatches));
+  int64_t learned = 0;
+  for (size_t i = 0; i < rows; ++i) {
+    if (b.mask[i] == 0) continue;
+    batches[size_t(learned++ % cfg_.minibatches)].push_back(int32_t(i));
+  }
+  for (const std::vector<int32_t>& mb : batches) rnd_->train(nn::ObsNormView::identity(), obs, mb);
 }
 
 void Trainer::compute_targets(IterationMetrics& m) {

@@ -38,6 +38,7 @@
 #include "nn/obs_normalizer.hpp"
 #include "ppo/comm.hpp"
 #include "ppo/intrinsic.hpp"
+#include "ppo/rnd.hpp"
 #include "ppo/train_config.hpp"
 
 namespace hns::ppo {
@@ -77,6 +78,7 @@ struct IterationMetrics {
   // networks) + t_backward (forward + loss + backward of the minibatches) + t_optimizer (Adam).
   double t_simulate = 0, t_observe = 0, t_infer = 0, t_learn = 0, t_other = 0;
   double t_targets = 0, t_backward = 0, t_optimizer = 0;
+  double t_intrinsic = 0;       // of learn: RND's forward passes and predictor steps (intrinsic = rnd)
   double t_comm = 0;            // of all the above, exchanging with and waiting for the other ranks
   int64_t unstable_resets = 0;  // envs reset by numerical trouble during this iteration
 
@@ -183,6 +185,10 @@ class Trainer {
   // env's intrinsic return so far this episode.
   std::unique_ptr<CountHasher> count_hasher_;
   std::unique_ptr<StateCounts> counts_;
+  std::unique_ptr<Rnd> rnd_;  // intrinsic = rnd
+  // intrinsic = rnd: the rollout's prediction errors, one per buffer row, and the rows the predictor trains
+  // on.
+  void rnd_rewards(const std::vector<int>& block_of);
   std::vector<double> intrinsic_return_;
   int64_t iteration_ = 0;
   int64_t agent_steps_ = 0;

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "ppo/trainer.hpp"
+#include "ppo_test_util.hpp"
 
 namespace hns::ppo {
 namespace {
@@ -121,26 +122,12 @@ TEST(CountBased, RewardIsScaleOverRootCountPerEnv) {
   EXPECT_FLOAT_EQ(back.visit(0, 42), 0.05f);  // the fourth visit
 }
 
+using testing::metrics_but_timings;
+
 TrainConfig count_config(const char* state = "full") {
-  TrainConfig c;
-  c.scene = "quadrant";
-  c.model = "small";
-  c.envs = 2;
-  c.horizon = 20;
-  c.epochs = 1;
-  c.minibatches = 2;
-  c.threads = 1;
-  c.seed = 3;
-  c.intrinsic = "count";
+  TrainConfig c = testing::tiny_intrinsic_config("count");
   c.count_state = state;
   return c;
-}
-
-std::string metrics_but_timings(const IterationMetrics& m) {
-  IterationMetrics z = m;
-  z.seconds = z.steps_per_s = z.t_simulate = z.t_observe = z.t_infer = z.t_learn = z.t_other = 0;
-  z.t_targets = z.t_backward = z.t_optimizer = z.t_comm = 0;
-  return z.to_json();
 }
 
 TEST(CountBased, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsCounts) {

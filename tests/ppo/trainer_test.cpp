@@ -257,7 +257,7 @@ std::string metrics_but_timings(const IterationMetrics& m) {
   IterationMetrics untimed = m;
   untimed.seconds = untimed.steps_per_s = 0;
   untimed.t_simulate = untimed.t_observe = untimed.t_infer = untimed.t_learn = untimed.t_other = 0;
-  untimed.t_targets = untimed.t_backward = untimed.t_optimizer = 0;
+  untimed.t_targets = untimed.t_backward = untimed.t_optimizer = untimed.t_intrinsic = 0;
   return untimed.to_json();
 }
 
