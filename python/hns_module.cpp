@@ -41,7 +41,8 @@ constexpr const char* kObsFields[] = {
     "obs_self",         "lidar",      "obs_agents", "obs_boxes",         "obs_ramps",
     "mask_agents",      "mask_boxes", "mask_ramps", "value_mask_agents", "value_mask_boxes",
     "value_mask_ramps", "step_count", "episode"};
-// ... and, in scenes with construction sites (blueprint), these.
+// ... and, in scenes with the fourth entity type (blueprint's construction sites, the food variants' items),
+// these.
 constexpr const char* kSiteObsFields[] = {"obs_sites", "mask_sites", "value_mask_sites"};
 
 // Per-env dimensions of every batch field (BatchState, HNS_BATCH_FIELDS): a dimension of size 1 stays an

@@ -26,6 +26,7 @@ void add_replay_command(CLI::App& app, std::vector<Command>& commands);
 void add_train_command(CLI::App& app, std::vector<Command>& commands);
 void add_report_command(CLI::App& app, std::vector<Command>& commands);
 void add_eval_command(CLI::App& app, std::vector<Command>& commands);
+void add_counting_command(CLI::App& app, std::vector<Command>& commands);
 
 // Writes trace events as a Chrome trace (chrome://tracing, ui.perfetto.dev), atomically: one row per
 // thread (TBB worker index; thread -1 is the trainer's own thread, shown as "trainer"), one box per phase
@@ -44,6 +45,19 @@ void check_output_path(const std::string& flag, const std::string& path,
 // A seed given to `flag`: a decimal integer in [0, 2^64 - 1], nothing else (no sign, exponent or fraction).
 // Throws physics::ConfigError.
 uint64_t parse_seed(const std::string& flag, const std::string& text);
+
+// A condition of `hns eval` or `hns counting`: the networks from the seed (`label` the command's own name
+// for it, checkpoint "") or from a --pretrained LABEL=CHECKPOINT.
+struct Condition {
+  std::string label;
+  std::string checkpoint;   // absolute path, "" for the seed's networks
+  std::string fingerprint;  // FNV-1a 64 of the checkpoint file, 16 hex digits
+};
+// The seed's condition `seed_label`, then one per --pretrained value: LABEL (letters, digits, - and _,
+// unique) = a readable checkpoint of `model`, identified by its bytes. Throws physics::ConfigError naming
+// the bad value.
+std::vector<Condition> parse_conditions(const std::string& seed_label,
+                                        const std::vector<std::string>& pretrained, const std::string& model);
 
 // Worker threads and memory: the batch library's (shared with the Python module).
 using batch::check_memory;

@@ -1,13 +1,16 @@
 #include <nlohmann/json.hpp>
 
+#include <cctype>
 #include <charconv>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
 #include <system_error>
 
 #include "cli.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
+#include "ppo/trainer.hpp"
 
 namespace hns::tools {
 
@@ -30,6 +33,59 @@ void check_output_path(const std::string& flag, const std::string& path,
     if (!in.empty() && fs::weakly_canonical(in, e2) == out)
       reject("is also an input of this command; choose another file");
   }
+}
+
+namespace {
+// FNV-1a 64 of a file's bytes as 16 hex digits.
+std::string file_fingerprint(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  uint64_t h = ppo::kFnv1a64Basis;
+  char buf[1 << 16];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) h = ppo::fnv1a64(buf, size_t(in.gcount()), h);
+  char hex[17];
+  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
+  return hex;
+}
+}  // namespace
+
+std::vector<Condition> parse_conditions(const std::string& seed_label,
+                                        const std::vector<std::string>& pretrained,
+                                        const std::string& model) {
+  namespace fs = std::filesystem;
+  std::vector<Condition> conditions = {{seed_label, "", ""}};
+  for (const std::string& p : pretrained) {
+    const std::string flag = "--pretrained " + p;
+    const auto eq = p.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == p.size())
+      throw physics::ConfigError(flag + ": expected LABEL=CHECKPOINT");
+    const std::string label = p.substr(0, eq);
+    for (char ch : label) {
+      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_'))
+        throw physics::ConfigError(flag + ": the label may hold letters, digits, - and _ only");
+    }
+    for (const Condition& other : conditions) {
+      if (other.label == label)
+        throw physics::ConfigError("--pretrained: label '" + label + "' is used twice");
+    }
+    Condition c{label, p.substr(eq + 1), ""};
+    std::error_code ec;
+    if (!fs::is_regular_file(c.checkpoint, ec))
+      throw physics::ConfigError(flag + ": no such checkpoint file");
+    c.checkpoint = fs::absolute(c.checkpoint).lexically_normal().string();
+    ppo::TrainConfig theirs;
+    try {
+      theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
+    } catch (const std::runtime_error& e) {
+      throw physics::ConfigError(flag + ": " + e.what());
+    }
+    if (theirs.model != model) {
+      throw physics::ConfigError(flag + ": the checkpoint's model is " + theirs.model +
+                                 ", this command's is " + model + " (--model)");
+    }
+    c.fingerprint = file_fingerprint(c.checkpoint);
+    conditions.push_back(c);
+  }
+  return conditions;
 }
 
 uint64_t parse_seed(const std::string& flag, const std::string& text) {

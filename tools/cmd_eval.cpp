@@ -49,23 +49,6 @@ struct EvalOptions {
   bool overwrite = false;
 };
 
-struct Condition {
-  std::string label;        // "scratch" or the --pretrained label
-  std::string checkpoint;   // absolute path, "" for scratch
-  std::string fingerprint;  // FNV-1a 64 of the checkpoint file, 16 hex digits
-};
-
-// FNV-1a 64 of a file's bytes as 16 hex digits.
-std::string file_fingerprint(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  uint64_t h = ppo::kFnv1a64Basis;
-  char buf[1 << 16];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) h = ppo::fnv1a64(buf, size_t(in.gcount()), h);
-  char hex[17];
-  std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
-  return hex;
-}
-
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream ss(text);
@@ -323,6 +306,9 @@ int run_eval(const EvalOptions& opt) {
     } catch (const physics::ConfigError& e) {
       throw physics::ConfigError(std::string("--tasks: ") + e.what());
     }
+    if (w.task == physics::WorldConfig::Task::kCounting)
+      throw physics::ConfigError("--tasks: '" + t +
+                                 "' is a probe of a frozen policy, not a task to train: run hns counting");
     if (!w.is_transfer_task())
       throw physics::ConfigError("--tasks: '" + t +
                                  "' is not a transfer task (lockbox, lock-and-return, "
@@ -330,43 +316,7 @@ int run_eval(const EvalOptions& opt) {
     if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
   }
-  // A --pretrained condition: a readable checkpoint of this evaluation's model, identified by its bytes.
-  auto condition_of = [&](const std::string& label, const std::string& path, const std::string& flag) {
-    Condition c{label, path, ""};
-    std::error_code ec;
-    if (!fs::is_regular_file(c.checkpoint, ec))
-      throw physics::ConfigError(flag + ": no such checkpoint file");
-    c.checkpoint = fs::absolute(c.checkpoint).lexically_normal().string();
-    ppo::TrainConfig theirs;
-    try {
-      theirs = ppo::Trainer::checkpoint_config(c.checkpoint);
-    } catch (const std::runtime_error& e) {
-      throw physics::ConfigError(flag + ": " + e.what());
-    }
-    if (theirs.model != opt.model) {
-      throw physics::ConfigError(flag + ": the checkpoint's model is " + theirs.model +
-                                 ", this evaluation's is " + opt.model + " (--model)");
-    }
-    c.fingerprint = file_fingerprint(c.checkpoint);
-    return c;
-  };
-  std::vector<Condition> conditions = {{"scratch", "", ""}};
-  for (const std::string& p : opt.pretrained) {
-    const auto eq = p.find('=');
-    if (eq == std::string::npos || eq == 0 || eq + 1 == p.size())
-      throw physics::ConfigError("--pretrained " + p + ": expected LABEL=CHECKPOINT");
-    const std::string label = p.substr(0, eq);
-    for (char ch : label) {
-      if (!(std::isalnum(static_cast<unsigned char>(ch)) || ch == '-' || ch == '_'))
-        throw physics::ConfigError("--pretrained " + p +
-                                   ": the label may hold letters, digits, - and _ only");
-    }
-    for (const Condition& other : conditions) {
-      if (other.label == label)
-        throw physics::ConfigError("--pretrained: label '" + label + "' is used twice");
-    }
-    conditions.push_back(condition_of(label, p.substr(eq + 1), "--pretrained " + p));
-  }
+  std::vector<Condition> conditions = parse_conditions("scratch", opt.pretrained, opt.model);
 
   ppo::TrainConfig base;
   base.model = opt.model;
@@ -433,8 +383,12 @@ int run_eval(const EvalOptions& opt) {
                                     [&](const Condition& c) { return c.label == label; });
           const std::string path = entry.at("path").get<std::string>();
           if (given == conditions.end()) {
-            conditions.push_back(
-                condition_of(label, path, "--resume " + opt.out + ": recorded condition " + label));
+            try {
+              conditions.push_back(parse_conditions("", {label + "=" + path}, opt.model).back());
+            } catch (const physics::ConfigError& e) {
+              throw physics::ConfigError("--resume " + opt.out + ": recorded condition " + label + ": " +
+                                         e.what());
+            }
             given = conditions.end() - 1;
           } else if (given->checkpoint != path) {
             throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " + path +

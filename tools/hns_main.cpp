@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   hns::tools::add_train_command(app, commands);
   hns::tools::add_report_command(app, commands);
   hns::tools::add_eval_command(app, commands);
+  hns::tools::add_counting_command(app, commands);
 
   // An unknown command gets named (CLI11 would only say that a subcommand is required).
   if (argc > 1 && argv[1][0] != '-') {

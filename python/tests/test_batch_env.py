@@ -41,8 +41,8 @@ SITE_OBS_FIELDS = {
 
 @pytest.mark.parametrize(
     "scene",
-    ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter", "blueprint", "food",
-     "dynamic-food"])
+    ["quadrant", "full", "lockbox", "lock-and-return", "sequential-lock", "shelter", "blueprint",
+     "object-counting", "food", "dynamic-food"])
 def test_shapes_and_dtypes(scene):
     env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
     sites = {"blueprint": (4, 15), "food": (5, 4), "dynamic-food": (1, 4)}.get(scene, (0, 0))

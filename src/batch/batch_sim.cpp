@@ -31,6 +31,7 @@ int max_walls(const physics::SceneConfig& scene) {
     case physics::Layout::kRandomWalls:
       return 4 + 2 * std::max(0, scene.rooms.max - 1);
     case physics::Layout::kVarTri:
+    case physics::Layout::kCounting:
       return 4 + 2;
     default:
       return 4;
@@ -217,7 +218,14 @@ void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int e
       }
       mark = now;
     };
-    world.step(actions.subspan(size_t(e) * A, size_t(world.num_agents())));
+    if (config_.world.task == physics::WorldConfig::Task::kCounting) {
+      // Object counting: the agent's actions are ignored and the script sets every pose after the step.
+      const AgentAction idle[1] = {};
+      world.step(std::span<const AgentAction>(idle, size_t(world.num_agents())));
+      pose_counting_env(e);
+    } else {
+      world.step(actions.subspan(size_t(e) * A, size_t(world.num_agents())));
+    }
     phase_done("physics", sc.ns_physics);
     if (world.unstable()) {
       // Numerical trouble stays in this env: drop the episode, start a new one.
@@ -347,6 +355,7 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
   scratch_[env].food_rng =
       physics::Rng(config_.seed ^ 0xF00DF00DULL, uint64_t(config_.first_env) + uint64_t(env), episode);
   state_.task_complete[env] = 0;
+  if (config_.world.task == physics::WorldConfig::Task::kCounting) pose_counting_env(env);
   if (layout_.shape_cylinders > 0) {
     const physics::Spawn& t = scene.target;
     state_.shape_cyl_cx[env] = scene.has_target ? float(t.x) : 0.0f;
@@ -681,6 +690,8 @@ void BatchSim::rewards_env(int env) {
       lockbox_rewards_env(env, reward);
     } else if (wc.task == physics::WorldConfig::Task::kBlueprint) {
       blueprint_rewards_env(env, reward);
+    } else if (wc.task == physics::WorldConfig::Task::kCounting) {
+      std::fill_n(reward, L.max_agents, 0.0f);  // a supervised probe: no reward
     } else {
       shelter_rewards_env(env, reward);
     }
@@ -835,6 +846,22 @@ void BatchSim::blueprint_rewards_env(int env, float* reward) {
   std::fill_n(reward, L.max_agents, float(r));
 }
 
+// Object counting: the agent pinned at its spot facing +y (yaw pi: an agent faces (sin yaw, -cos yaw)), box k
+// where the script has it after this many steps (docs/transfer.md "Object counting").
+void BatchSim::pose_counting_env(int env) {
+  physics::World& world = *worlds_[env];
+  const physics::Scene& scene = world.scene();
+  const int t = world.step_count();
+  world.set_agent_pose(0, physics::kCountingAgentX, physics::kCountingAgentY, physics::kAgentRadius,
+                       3.14159265358979323846);
+  for (int k = 0; k < world.num_boxes(); ++k) {
+    const int side =
+        k < int(scene.sides.size()) ? scene.sides[size_t(k)] : 1;  // a staged scene may omit them
+    world.set_box_pose(k, physics::counting_box_x(k, t, side),
+                       physics::kCountingRow0 + k * physics::kCountingRowStep, 0.5 * physics::kBoxSize, 0.0);
+  }
+}
+
 // The food variants (SPEC §5.4), after the step: every hider the previous observation let eat an item
 // (food_eat_ok) and within eat_radius of it eats 1 unit of it, outside the preparation phase; hiders that
 // would together eat more than is left share it. An item eaten up stays at 0 for respawn_steps steps (the
@@ -878,6 +905,9 @@ void BatchSim::food_env(int env, float* reward, bool prep) {
       if (fc.relocate) {
         const auto [x, y] = physics::food_respawn_spot(config_.world.scene, scratch_[env].food_rng);
         p[0] = float(x), p[1] = float(y);
+        // This step's vision looked at the old spot: the moved item counts as unseen until the next step's
+        // vision (masked in this observation, not eaten at the next step).
+        for (int a = 0; a < L.max_agents; ++a) s.vis_food[(size_t(env) * L.max_agents + a) * F + f] = 0;
       }
     }
     empty_steps = health <= 0.0f ? empty_steps + 1 : 0;

@@ -171,7 +171,7 @@ struct Layout {
   X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")             \
-  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 7)")     \
+  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
   /* Box-locking tasks (WorldConfig::is_lock_task(), SPEC §9.2). */                                        \
   X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
@@ -340,6 +340,7 @@ class BatchSim {
   void blueprint_rewards_env(int env, float* reward);  // SPEC §9.1; sets task_complete
   // The food variants (SPEC §5.4): eating, health and respawn after a step; adds each agent's food reward.
   void food_env(int env, float* reward, bool prep);
+  void pose_counting_env(int env);  // object counting's script (pinned agent, sliding boxes)
   void observe_env(int env);
   void end_episode_env(int env, bool discarded);
   // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).

@@ -13,6 +13,7 @@ WorldConfig world_preset(const std::string& name) {
   if (name == "sequential-lock") return WorldConfig::sequential_lock();
   if (name == "shelter") return WorldConfig::shelter();
   if (name == "blueprint") return WorldConfig::blueprint();
+  if (name == "object-counting") return WorldConfig::object_counting();
   if (name == "food") return WorldConfig::food_game();
   if (name == "dynamic-food") return WorldConfig::dynamic_food_game();
   std::string names;

@@ -460,6 +460,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.has_target = false;
   out.sites.clear();
   out.food.clear();
+  out.sides.clear();
   out.num_hiders = n.hiders;
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
@@ -503,6 +504,13 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
       var_tri_walls(rng, out.walls, out.rooms);
       break;
+    case Layout::kCounting:
+      // Two screens in row 9 (y 1.85 .. 1.95 m, interior height), x 0.15 .. 2.45 m and 3.55 .. 5.85 m: the
+      // gap between them shows the boxes' column to the agent and hides both ends of their rows.
+      out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
+      out.walls.push_back({0, 9, 12, 9, false});
+      out.walls.push_back({17, 9, 29, 9, false});
+      break;
   }
 
   // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (SPEC §2.4,
@@ -517,6 +525,19 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   for (const WallCells& w : out.walls) grid.mark_wall(w);
   for (const WallCells& w : out.walls) add_wall_box(w, out.wall_boxes);
 
+  if (config.layout == Layout::kCounting) {  // fixed spots; only the sides are drawn
+    out.num_hiders = 1;
+    out.num_seekers = 0;
+    out.num_elongated = 0;
+    out.agents.push_back({kCountingAgentX, kCountingAgentY, kAgentRadius, 2 * kAgentRadius, 2 * kAgentRadius,
+                          2 * kAgentRadius});
+    for (int k = 0; k < n.boxes; ++k) {
+      out.boxes.push_back({kCountingAgentX, kCountingRow0 + k * kCountingRowStep, 0.5 * kBoxSize, kBoxSize,
+                           kBoxSize, kBoxSize});
+      out.sides.push_back(rng.bernoulli(0.5) ? int8_t{-1} : int8_t{1});
+    }
+    return true;
+  }
   const int tries = config.max_tries_per_object;
   const bool quadrant = config.layout == Layout::kQuadrant;
   const int together_cells =
@@ -667,8 +688,9 @@ Layout parse_layout(const std::string& name) {
   if (name == "quadrant") return Layout::kQuadrant;
   if (name == "randomwalls") return Layout::kRandomWalls;
   if (name == "var_tri") return Layout::kVarTri;
+  if (name == "counting") return Layout::kCounting;
   throw ConfigError("layout = '" + name +
-                    "' is invalid: must be one of empty, quadrant, randomwalls, var_tri");
+                    "' is invalid: must be one of empty, quadrant, randomwalls, var_tri, counting");
 }
 
 const char* layout_name(Layout layout) {
@@ -681,6 +703,8 @@ const char* layout_name(Layout layout) {
       return "randomwalls";
     case Layout::kVarTri:
       return "var_tri";
+    case Layout::kCounting:
+      return "counting";
   }
   return "unknown";
 }
@@ -725,8 +749,15 @@ SceneConfig SceneConfig::empty() {
 
 void SceneConfig::validate() const {
   if (layout != Layout::kEmpty && layout != Layout::kQuadrant && layout != Layout::kRandomWalls &&
-      layout != Layout::kVarTri) {
-    reject("layout", static_cast<int>(layout), "must be one of empty, quadrant, randomwalls, var_tri");
+      layout != Layout::kVarTri && layout != Layout::kCounting) {
+    reject("layout", static_cast<int>(layout),
+           "must be one of empty, quadrant, randomwalls, var_tri, counting");
+  }
+  if (layout == Layout::kCounting) {
+    if (hiders.min != 1 || hiders.max != 1 || seekers.max != 0)
+      reject("hiders", hiders.max, "the counting layout has exactly one hider and no seeker");
+    if (boxes.max > 6 || elongated.max != 0 || ramps.max != 0 || sites.max != 0 || food.max != 0)
+      reject("boxes.max", boxes.max, "the counting layout has at most 6 cubes and nothing else");
   }
   check_range("hiders", hiders);
   check_range("seekers", seekers);
@@ -875,6 +906,12 @@ std::pair<double, double> food_respawn_spot(const SceneConfig& config, Rng& rng)
   const double x = cell.i * kCellSize + rng.uniform(0.0, c * kCellSize - req.sx) + 0.5 * req.sx;
   const double y = cell.j * kCellSize + rng.uniform(0.0, c * kCellSize - req.sy) + 0.5 * req.sy;
   return {x, y};
+}
+
+double counting_box_x(int k, int step, int side) {
+  const int start = kCountingStart + k * kCountingInterval;
+  const double moved = std::clamp((step - start) * kCountingSpeed, 0.0, kCountingTravel);
+  return kCountingAgentX + side * moved;
 }
 
 }  // namespace hns::physics

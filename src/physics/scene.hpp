@@ -32,7 +32,19 @@ inline constexpr double kFoodSize = 0.1;            // m, a food item's extent (
 inline constexpr int kQuadrantSize = 15;
 
 // Wall layout of a scene. kVarTri: three door-less rooms (SPEC §9.2 'var_tri', the sequential-lock task).
-enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls, kVarTri };
+// kCounting: the object-counting task's fixed stage (docs/transfer.md "Object counting"): two screens, the
+// agent and the boxes at fixed spots, each box's side drawn per episode.
+enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls, kVarTri, kCounting };
+
+// The object-counting stage (kCounting), m and env steps. The agent stands at (3, 0.7) facing +y; box k
+// starts at (3, kCountingRow0 + k * kCountingRowStep), and from step kCountingStart + k * kCountingInterval
+// slides kCountingSpeed per step to x = 3 -/+ kCountingTravel (left / right), where the screens hide it.
+inline constexpr double kCountingAgentX = 3.0, kCountingAgentY = 0.7;
+inline constexpr double kCountingRow0 = 2.6, kCountingRowStep = 0.55;
+inline constexpr int kCountingStart = 5, kCountingInterval = 8;
+inline constexpr double kCountingSpeed = 0.2, kCountingTravel = 2.4;
+// Box k's centre x after `step` env steps of an episode; side -1 = left, +1 = right.
+double counting_box_x(int k, int step, int side);
 
 // Parses "empty", "quadrant", "randomwalls", "var_tri"; throws ConfigError otherwise.
 Layout parse_layout(const std::string& name);
@@ -141,6 +153,8 @@ struct Scene {
   std::vector<Spawn> sites;
   // Food items, centre at z = kFoodSize / 2, sx = sy = sz = kFoodSize.
   std::vector<Spawn> food;
+  // kCounting: the side each box goes to, -1 left or +1 right (one per box).
+  std::vector<int8_t> sides;
   int regenerations = 0;  // whole-scene rebuilds this scene needed
 };
 

@@ -292,6 +292,14 @@ WorldConfig WorldConfig::blueprint() {
   return c;
 }
 
+WorldConfig WorldConfig::object_counting() {
+  WorldConfig c = transfer_task(Task::kCounting, 80);
+  c.scene.layout = Layout::kCounting;
+  c.scene.boxes = {6, 6};
+  c.obs_hider = 0;
+  return c;
+}
+
 WorldConfig WorldConfig::food_game() {
   WorldConfig c = full();
   c.scene.food = {5, 5};
@@ -347,10 +355,11 @@ void WorldConfig::validate() const {
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
   check(task == Task::kHideAndSeek || task == Task::kLockBox || task == Task::kLockReturn ||
-            task == Task::kSequentialLock || task == Task::kShelter || task == Task::kBlueprint,
+            task == Task::kSequentialLock || task == Task::kShelter || task == Task::kBlueprint ||
+            task == Task::kCounting,
         "task", int(task),
-        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3), shelter (4) or "
-        "blueprint (5)");
+        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3), shelter (4), "
+        "blueprint (5) or counting (6)");
   check(!is_transfer_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
         "must be >= 1 in a transfer task (agent 0 does the task)");
   check(task != Task::kShelter || scene.target_diameter_max > 0, "target_diameter_max",
@@ -359,6 +368,8 @@ void WorldConfig::validate() const {
         "must be >= 1 in the blueprint task (its construction sites)");
   check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
         "must be >= 1 in the blueprint task (its building blocks)");
+  check((task == Task::kCounting) == (scene.layout == Layout::kCounting), "scene.layout", int(scene.layout),
+        "the counting layout goes with the object-counting task, and only with it");
   check(scene.food.max == 0 || task == Task::kHideAndSeek, "food.max", scene.food.max,
         "must be 0 in a transfer task (food is a variant of hide-and-seek)");
   check(food.eat_radius > 0 && food.eat_radius <= 10, "food.eat_radius", food.eat_radius,

@@ -76,7 +76,17 @@ struct WorldConfig {
   // ray from the arena's edges that reaches the scene's cylinder); or blueprint construction (SPEC §9.1:
   // a dense smooth-min reward pulling box corners onto the sites' corners, +3 per site on completion, after
   // which the episode is absorbed: every later step's reward is 0 and batch::BatchState::task_complete is 1).
-  enum class Task : uint8_t { kHideAndSeek, kLockBox, kLockReturn, kSequentialLock, kShelter, kBlueprint };
+  // kCounting: object counting (the paper's §6), a supervised probe: the agent is pinned, its actions are
+  // ignored, the boxes slide to their sides on a script (physics::counting_box_x), and the reward is 0.
+  enum class Task : uint8_t {
+    kHideAndSeek,
+    kLockBox,
+    kLockReturn,
+    kSequentialLock,
+    kShelter,
+    kBlueprint,
+    kCounting
+  };
   Task task = Task::kHideAndSeek;
   double lock_reward = 5.0;          // box-locking tasks: per newly locked box
   double unlock_penalty = 5.0;       // per newly unlocked box
@@ -114,10 +124,12 @@ struct WorldConfig {
   static WorldConfig shelter();
   // SPEC §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
   static WorldConfig blueprint();
+  // The paper's object counting (§6; docs/transfer.md): the fixed counting stage, 6 cubes, horizon 80.
+  static WorldConfig object_counting();
   // The paper's food variants of the full game (docs/food.md): 5 items of 40 units close together in the
-  // centred square of 1/4 the arena's side, respawning 5 steps after they are eaten up ("food"); and one item
-  // of 1 unit that moves to a new spot of the centred square of 1/5 the side when eaten, with 3 hiders,
-  // 2 seekers and 8 elongated boxes in an arena without walls ("dynamic-food").
+  // centred square (food_middle 0.25), respawning 5 steps after they are eaten up ("food"); and one item of
+  // 1 unit that moves to a new spot of the centred square (food_middle 0.2; both are cells 11 .. 16) when
+  // eaten, with 3 hiders, 2 seekers and 8 elongated boxes in an arena without walls ("dynamic-food").
   static WorldConfig food_game();
   static WorldConfig dynamic_food_game();
   // Throws ConfigError naming the first bad field (the scene's fields included).

@@ -422,7 +422,8 @@ void Trainer::rollout(IterationMetrics& m) {
     const float extrinsic = float(cfg_.extrinsic_coef);
     for (int e = 0; e < E; ++e) {
       float bonus = 0.0f;
-      if (counts_) {
+      const bool absorbed = s.task_complete[e] != 0 && b.mask[row0 + size_t(e) * A] == 0;
+      if (counts_ && !absorbed) {  // a completed blueprint's absorbed steps visit nothing
         bonus = counts_->visit(env0_ + e, count_hasher_->key(s, L, e));
         intrinsic_return_[size_t(e)] += bonus;
       }

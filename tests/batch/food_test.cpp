@@ -190,6 +190,10 @@ TEST(Food, DynamicFoodMovesToANewSpotOfItsSquareWhenEaten) {
   EXPECT_EQ(t.s().food_health[0], 0.0f);
   t.step();
   EXPECT_EQ(t.s().food_health[0], 1.0f);
+  // The step's vision looked at the old spot: the moved item is unseen (masked, not edible) until the next.
+  EXPECT_EQ(t.s().vis_food[0], 0);
+  EXPECT_EQ(t.s().mask_sites[0], 0);
+  EXPECT_EQ(t.s().food_eat_ok[0], 0);
   const float x = t.s().food_pos[0], y = t.s().food_pos[1];
   EXPECT_FALSE(x == 3.0f && y == 3.0f);
   for (float v : {x, y}) {

@@ -458,5 +458,50 @@ TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
   }
 }
 
+// ---------------------------------------------------------------------------------------------------------
+// Object counting (the paper's §6; docs/transfer.md): the pinned agent sees box k in the gap between the
+// screens until it has slid to its side, then never again; its own actions move nothing; no reward.
+TEST(ObjectCounting, BoxesSlideToTheirSidesAndVanishBehindTheScreens) {
+  BatchConfig c = task_config("object-counting");
+  c.num_envs = 4;
+  BatchSim sim(c);
+  sim.reset();
+  const Layout& L = sim.layout();
+  ASSERT_EQ(L.max_boxes, 6);
+  ASSERT_EQ(L.max_agents, 2);
+  const BatchState& s = sim.state();
+  std::vector<AgentAction> push(size_t(c.num_envs) * L.max_agents);
+  for (AgentAction& a : push) a.move_x = 10, a.move_y = 0, a.turn = 10, a.grab = 1, a.lock = 1;
+  const int horizon = c.world.horizon;
+  std::vector<int> seen_steps(size_t(c.num_envs) * 6, 0);
+  int lefts = 0;
+  for (int t = 0; t < horizon; ++t) {
+    for (int e = 0; e < c.num_envs; ++e) {
+      const size_t ea = size_t(e) * L.max_agents;
+      EXPECT_NEAR(s.agent_pos[ea * 3], 3.0f, 1e-4f) << "pinned";
+      EXPECT_NEAR(s.agent_pos[ea * 3 + 1], 0.7f, 1e-4f);
+      for (int k = 0; k < 6; ++k) seen_steps[size_t(e) * 6 + k] += s.vis_boxes[ea * L.max_boxes + k];
+      // Box k is seen only while it is near the gap's column; after step 57 every box is hidden.
+      if (t >= 57)
+        for (int k = 0; k < 6; ++k)
+          ASSERT_EQ(s.vis_boxes[ea * L.max_boxes + k], 0) << "t " << t << " box " << k;
+      if (t == horizon - 1) {
+        const physics::Scene& scene = sim.world(e).scene();
+        ASSERT_EQ(scene.sides.size(), 6u);
+        for (int k = 0; k < 6; ++k) {
+          EXPECT_NEAR(s.box_pos[(size_t(e) * L.max_boxes + k) * 3], 3.0 + 2.4 * scene.sides[size_t(k)], 1e-4);
+          lefts += scene.sides[size_t(k)] < 0;
+        }
+      }
+    }
+    if (t == 0) EXPECT_EQ(s.vis_boxes[0], 1) << "the first box stands in the gap";
+    sim.step(push);
+    for (int e = 0; e < c.num_envs; ++e) EXPECT_EQ(s.reward[size_t(e) * L.max_agents], 0.0f);
+  }
+  for (int v : seen_steps) EXPECT_GT(v, 0) << "every box is seen at some step";
+  EXPECT_GT(lefts, 0);
+  EXPECT_LT(lefts, 24);
+}
+
 }  // namespace
 }  // namespace hns::batch

@@ -162,10 +162,13 @@ TEST(Rnd, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsPredictor) {
   const std::string path = ::testing::TempDir() + "rnd_resume.bin";
   with.save(path);
   const std::string second = metrics_but_timings(with.iterate());
+  const std::string third = metrics_but_timings(with.iterate());
   Trainer resumed(rnd_config());
   resumed.load(path);
-  // (With the seed's predictor instead of the trained one, the intrinsic rewards would differ.)
+  // (With the seed's predictor instead of the trained one, the second iteration's intrinsic rewards would
+  // differ; without the predictor's Adam moments and step count, the third's.)
   EXPECT_EQ(metrics_but_timings(resumed.iterate()), second);
+  EXPECT_EQ(metrics_but_timings(resumed.iterate()), third);
   std::remove(path.c_str());
 
   TrainConfig bad = rnd_config();

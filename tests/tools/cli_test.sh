@@ -329,6 +329,23 @@ expect_fail 2 "cannot start shelter: .*entity types" eval --out "$tmp/eval-bad" 
   --pretrained "lb=$tmp/init-good.bin"
 expect_fail 2 "seed is set by hns eval" eval --out "$tmp/eval-bad" --set seed=2
 [ -e "$tmp/eval-bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused hns eval created its folder"; }
+# hns counting: the object-counting probe on a frozen policy from the seed, its two outputs, and its refusals
+# (before any file is written); hns eval leaves the probe to it.
+if "$hns" counting --out "$tmp/count" --seeds 1 --train-episodes 16 --test-episodes 8 --epochs 3 --envs 8 \
+     --threads 1 >"$tmp/log" 2>&1 &&
+   grep -q '"test_accuracy"' "$tmp/count/counting.json" && grep -q "| random |" "$tmp/count/counting.md" &&
+   grep -q "random / seed 1: test accuracy" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: hns counting"; cat "$tmp/log"
+fi
+expect_fail 2 "cannot act in object-counting: .*entity types" counting --out "$tmp/count-bad" \
+  --pretrained "lb=$tmp/init-good.bin"
+expect_fail 2 "expected LABEL=CHECKPOINT" counting --out "$tmp/count-bad" --pretrained nolabel
+expect_fail 2 "seeds 0: must be in" counting --out "$tmp/count-bad" --seeds 0
+expect_fail 2 "probe of a frozen policy" eval --out "$tmp/eval-bad" --tasks object-counting
+[ -e "$tmp/count-bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused hns counting created its folder"; }
 # The shipped recipes (configs/) are valid configs that train: each runs one iteration shrunk to 4 envs.
 configs="$(cd "$(dirname "$0")/../../configs" && pwd)"
 for cfg in "$configs"/*.json; do
