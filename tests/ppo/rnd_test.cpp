@@ -176,5 +176,19 @@ TEST(Rnd, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsPredictor) {
   EXPECT_THROW(bad.validate(), physics::ConfigError);
 }
 
+// The learning smoke test of RND: as the predictor learns the states the agents visit, their intrinsic
+// return falls (six iterations of 4 quadrant envs, a second or two).
+TEST(Rnd, TheIntrinsicReturnFallsAsThePredictorLearns) {
+  TrainConfig c = rnd_config();
+  c.envs = 4;
+  c.horizon = 40;
+  Trainer t(c);
+  const double first = t.iterate().intrinsic_reward;
+  double last = first;
+  for (int i = 0; i < 5; ++i) last = t.iterate().intrinsic_reward;
+  EXPECT_GT(first, 0.0);
+  EXPECT_LT(last, 0.8 * first);
+}
+
 }  // namespace
 }  // namespace hns::ppo
