@@ -773,7 +773,6 @@ void BatchSim::shelter_rewards_env(int env, float* reward) {
   std::fill_n(reward, layout_.max_agents, -kShelterRayCost * float(shelter_rays_reaching(env)));
 }
 
-// The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
 // Blueprint construction (SPEC §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2,
 // 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners are
 // (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box corner
@@ -926,6 +925,7 @@ void BatchSim::food_env(int env, float* reward, bool prep) {
   }
 }
 
+// The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
 // in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
 // (kTargetNone). task_dist: the 2-D distance to it.
 void BatchSim::lockbox_retarget(int env) {

@@ -388,13 +388,11 @@ std::string Trainer::initialize_from(const std::string& path) {
         (theirs.max_ramps > 0) != (mine.max_ramps > 0) || !sites_ok) {
       return "observation slots: the checkpoint's scene " + saved.scene + " has " + types(theirs) +
              ", this run's " + cfg_.scene + " " + types(mine) +
-             "; the entity types present (other agents, boxes, ramps) must be the same, and sites may only "
-             "be added";
+             "; the entity types present (other agents, boxes, ramps) must be the same (sites may be added)";
     }
     if (cfg_.init_optimizer != 0 && theirs.max_sites == 0 && mine.max_sites > 0) {
-      return "init_optimizer = 1: this run's site embeddings are not in the checkpoint, and Adam's step "
-             "count "
-             "would start their zero moments past the bias correction; use init_optimizer = 0";
+      return "init_optimizer = 1: the checkpoint lacks this run's site embeddings, and Adam's step count "
+             "would skip their zero moments' bias correction; use init_optimizer = 0";
     }
     return "";
   });
