@@ -6,6 +6,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <optional>
 #include <sstream>
 #include <vector>
 
@@ -21,6 +22,10 @@ namespace {
 
 using physics::ConfigError;
 
+bool is_count_key(std::string_view n) {
+  return n == "hiders" || n == "seekers" || n == "boxes" || n == "ramps";
+}
+
 // Calls f(name, field, is_identity) for every field in declaration order. Identity fields change the results
 // of a run; the others (iterations, threads, checkpoint cadence) do not.
 template <class Config, class F>
@@ -28,6 +33,10 @@ void visit_fields(Config& c, F&& f) {
   f("scene", c.scene, true);
   f("model", c.model, true);
   f("horizon", c.horizon, true);
+  f("hiders", c.hiders, true);
+  f("seekers", c.seekers, true);
+  f("boxes", c.boxes, true);
+  f("ramps", c.ramps, true);
   f("envs", c.envs, true);
   f("episodes_per_iteration", c.episodes_per_iteration, true);
   f("iterations", c.iterations, false);
@@ -253,6 +262,10 @@ std::string TrainConfig::to_json() const {
     if (intrinsic_defaults && (n == "intrinsic" || n == "count_state" || n == "count_scale" ||
                                n == "extrinsic_coef" || n == "rnd_scale"))
       return;
+    // And the count overrides only where set.
+    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, int>) {
+      if (is_count_key(n) && field < 0) return;
+    }
     out += first ? "  " : ",\n  ";
     first = false;
     out += json_string(name) + ": ";
@@ -285,6 +298,7 @@ void TrainConfig::merge_run_json(std::string_view text, const std::string& origi
   extrinsic_coef = 1.0;
   rnd_scale = 1.0;
   init_heads = 1;
+  hiders = seekers = boxes = ramps = -1;  // the scene's counts
   merge_json(text, origin);
 }
 
@@ -331,6 +345,14 @@ int TrainConfig::minibatches_for(int64_t chunks) const {
 physics::WorldConfig TrainConfig::world() const {
   physics::WorldConfig w = physics::world_preset(scene);
   if (horizon > 0) w.horizon = horizon;
+  const bool had_others = w.max_agents() > 1, had_ramps = w.scene.ramps.max > 0;
+  auto count = [](int v) { return v >= 0 ? std::optional<int>(v) : std::nullopt; };
+  physics::apply_overrides(
+      w, physics::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
+  // Keep the entity types of the scene in the observation: a lone agent still has an (empty) other-agent
+  // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (SPEC §9).
+  if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
+  if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
   return w;
 }
 
@@ -381,6 +403,16 @@ void TrainConfig::validate() const {
   } catch (const std::invalid_argument&) {
     check(false, "model", model, "must be one of small, paper");
   }
+  const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0;
+  check(!counts_set || !w.is_transfer_task(), "scene", scene,
+        "sets its own agent and object counts: the keys hiders, seekers, boxes and ramps are for the "
+        "hide-and-seek scenes (quadrant, full, empty, food, dynamic-food)");
+  check(hiders >= -1 && hiders <= 32, "hiders", hiders, "must be in [0, 32] (-1 = the scene's)");
+  check(seekers >= -1 && seekers <= 32, "seekers", seekers, "must be in [0, 32] (-1 = the scene's)");
+  check(boxes >= -1 && boxes <= 32, "boxes", boxes, "must be in [0, 32] (-1 = the scene's)");
+  check(ramps >= -1 && ramps <= 16, "ramps", ramps, "must be in [0, 16] (-1 = the scene's)");
+  check(w.max_agents() >= 1, "hiders", hiders,
+        "with seekers = " + std::to_string(seekers) + ": at least one agent is required");
   w.validate();
   w.scene.check_placeable();
   check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");

@@ -23,6 +23,14 @@ struct TrainConfig {
   std::string scene = "quadrant";  // physics::kSceneNames (physics::world_preset)
   std::string model = "small";     // small | paper (nn::net_preset)
   int horizon = 0;                 // env steps per episode; 0 = the scene preset's
+  // Fixed counts per episode instead of the scene's ranges (-1 = the scene's), for the hide-and-seek
+  // scenes (quadrant, full, empty, food, dynamic-food): e.g. the paper's single-agent count-based baselines
+  // (hiders 1, seekers 0). An entity type the scene has keeps one observation slot (empty, masked) when its
+  // count is set to 0 or to a lone agent, so the network's inputs and checkpoints keep their types.
+  int hiders = -1;
+  int seekers = -1;
+  int boxes = -1;
+  int ramps = -1;
   // Rollouts.
   int envs = 32;                   // game instances stepped together
   int episodes_per_iteration = 1;  // whole episodes per env per iteration

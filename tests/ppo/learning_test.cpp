@@ -90,5 +90,32 @@ TEST(PpoLearning, CountBasedAgentsLearnToMoveBoxes) {
   EXPECT_GT(intrinsic_last5, intrinsic_first);
 }
 
+// The food family: in the food game with one hider and no seeker (so nothing stops it eating after the
+// preparation phase; 80-step episodes), the hider learns to go to the centred food and face it: the units
+// eaten per episode grow well beyond the initial policy's (with this config: 1.2 over the first 3
+// iterations, 4.2 over the last 5; 100 k agent-steps, about 30 s on 2 cores).
+TEST(PpoLearning, AHiderLearnsToEatTheFood) {
+  TrainConfig c;
+  c.scene = "food";
+  c.model = "small";
+  c.hiders = 1;
+  c.seekers = 0;
+  c.horizon = 80;
+  c.envs = 32;
+  c.iterations = 40;
+  c.threads = 0;
+  c.seed = 1;
+  Trainer t(c);
+  double first = 0, last5 = 0;
+  for (int i = 1; i <= c.iterations; ++i) {
+    const IterationMetrics m = t.iterate();
+    if (i <= 3) first += m.food_eaten / 3;
+    if (i > c.iterations - 5) last5 += m.food_eaten / 5;
+  }
+  std::printf("food: units eaten per episode %.2f -> %.2f\n", first, last5);
+  EXPECT_GT(last5, 2.0 * first);
+  EXPECT_GT(last5, 3.0);
+}
+
 }  // namespace
 }  // namespace hns::ppo

@@ -579,6 +579,71 @@ TEST(Trainer, BlueprintStartsFromAHideAndSeekCheckpointWithItsSiteEmbeddingFromT
 
 // The paper's fine-tuning reinitialises each network's final layer norm and output layer: with init_heads = 0
 // exactly those slices (policy and value) keep the new run's seeded values, every other slice is carried.
+// The count keys fix a hide-and-seek scene's teams and objects (the paper's single-agent count-based
+// baselines): the lone agent keeps an empty other-agent slot, and a scene whose ramps are set to 0 an empty
+// ramp slot, so its checkpoint still starts a transfer task; the keys are written only where set, read back,
+// compared on resume, and refused by the transfer tasks.
+TEST(TrainConfig, CountKeysFixTheTeamsAndKeepTheEntityTypes) {
+  TrainConfig c = tiny_quadrant();
+  c.set("hiders", "1");
+  c.set("seekers", "0");
+  c.set("ramps", "0");
+  c.set("boxes", "3");
+  c.validate();
+  const physics::WorldConfig w = c.world();
+  EXPECT_EQ(w.max_agents(), 1);
+  EXPECT_EQ(w.agent_slots(), 2);
+  EXPECT_EQ(w.obs_min_ramps, 1);
+  EXPECT_EQ(w.scene.boxes.min, 3);
+  EXPECT_EQ(w.scene.boxes.max, 3);
+  EXPECT_EQ(w.scene.ramps.max, 0);
+  const std::string json = c.to_json();
+  EXPECT_NE(json.find("\"hiders\": 1"), std::string::npos) << json;
+  EXPECT_NE(json.find("\"seekers\": 0"), std::string::npos) << json;
+  TrainConfig back;
+  back.merge_run_json(json, "config.json");
+  EXPECT_EQ(back.identity_mismatch(c), "");
+  EXPECT_EQ(back.hiders, 1);
+  EXPECT_EQ(back.boxes, 3);
+  TrainConfig plain = tiny_quadrant();
+  EXPECT_EQ(plain.to_json().find("hiders"), std::string::npos);  // files of runs without them are unchanged
+  EXPECT_NE(plain.identity_mismatch(c).find("hiders"), std::string::npos);
+
+  // A single-agent run trains, and its checkpoint starts lock-and-return (same entity types).
+  const std::string path = temp_path("single_agent.bin");
+  {
+    Trainer single(c);
+    const IterationMetrics m = single.iterate();
+    EXPECT_EQ(m.agent_steps, int64_t(c.envs) * c.world().horizon);  // one real agent per env
+    single.save(path);
+  }
+  TrainConfig lr;
+  lr.scene = "lock-and-return";
+  lr.envs = 2;
+  lr.threads = 1;
+  lr.init_from = path;
+  Trainer t(lr);
+  EXPECT_NE(t.initialize_from(path).find("policy weights"), std::string::npos);
+  std::remove(path.c_str());
+
+  TrainConfig task = lr;
+  task.init_from.clear();
+  task.hiders = 1;
+  try {
+    task.validate();
+    ADD_FAILURE() << "a transfer task accepted a count key";
+  } catch (const physics::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("hiders, seekers, boxes and ramps"), std::string::npos) << e.what();
+  }
+  TrainConfig nobody = tiny_quadrant();
+  nobody.hiders = 0;
+  nobody.seekers = 0;
+  EXPECT_THROW(nobody.validate(), physics::ConfigError);
+  TrainConfig bad = tiny_quadrant();
+  bad.seekers = -2;
+  EXPECT_THROW(bad.validate(), physics::ConfigError);
+}
+
 TEST(Trainer, InitHeadsZeroStartsTheHeadsFromTheSeed) {
   const std::string path = temp_path("init_heads.bin");
   Trainer source(tiny_quadrant());
