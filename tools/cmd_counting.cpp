@@ -49,9 +49,9 @@ std::string table_markdown(const std::vector<Condition>& conditions, const std::
   std::snprintf(
       buf, sizeof buf,
       "Test accuracy of a head (layer norm, dense 64 + ReLU, dense 7) on the frozen policy's final LSTM "
-      "output, saying how many of 6 boxes went left; %d training and %d test episodes, %d epochs, "
-      "model %s. Mean over seeds with the Student-t 90 %% interval.\n\n",
-      opt.train_episodes, opt.test_episodes, opt.epochs, opt.model.c_str());
+      "output, saying how many of 6 boxes went left; %d training and %d test episodes played by %d "
+      "envs, %d epochs, model %s. Mean over seeds with the Student-t 90 %% interval.\n\n",
+      opt.train_episodes, opt.test_episodes, opt.envs, opt.epochs, opt.model.c_str());
   md += buf;
   md += "| condition | test accuracy | train accuracy | majority class | seeds |\n|---|---|---|---|---|\n";
   for (const Condition& c : conditions) {
@@ -113,6 +113,7 @@ int run_counting(const CountingOptions& opt) {
                    {"train_episodes", opt.train_episodes},
                    {"test_episodes", opt.test_episodes},
                    {"epochs", opt.epochs},
+                   {"envs", opt.envs},  // env e plays its own episodes: the scenes depend on the count
                    {"seeds", opt.seeds},
                    {"pretrained", json::object()}};
   for (const Condition& c : conditions)
@@ -182,8 +183,8 @@ void add_counting_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--epochs", opt->epochs, "Passes of the head's training")
       ->check(CLI::Range(1, 100000))
       ->capture_default_str();
-  cmd->add_option("--envs", opt->envs, "Envs playing episodes at once")
-      ->check(CLI::Range(1, 1 << 16))
+  cmd->add_option("--envs", opt->envs, "Envs playing episodes at once (the scenes depend on it)")
+      ->check(CLI::Range(1, 1024))
       ->capture_default_str();
   cmd->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
   commands.push_back({cmd, [opt] { return run_counting(*opt); }});

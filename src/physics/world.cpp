@@ -528,6 +528,8 @@ void World::reset_with_scene(const Scene& scene, uint64_t episode) {
   check(scene.num_hiders + scene.num_seekers, config_.max_agents(), "agents");
   check(int(scene.boxes.size()), config_.scene.boxes.max, "boxes");
   check(int(scene.ramps.size()), config_.scene.ramps.max, "ramps");
+  check(int(scene.sites.size()), config_.scene.sites.max, "construction sites");
+  check(int(scene.food.size()), config_.scene.food.max, "food items");
   episode_ = episode;
   rng_ = Rng(seed_, world_index_, episode);
   scene_ = scene;

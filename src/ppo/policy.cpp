@@ -54,7 +54,7 @@ void Policy::act(const batch::BatchSim& sim, std::span<physics::AgentAction> act
   const nn::ObsShape& shape = obs_shape();
   const batch::Layout& L = sim.layout();
   if (L.max_agents != shape.max_agents || L.max_boxes != shape.max_boxes || L.max_ramps != shape.max_ramps ||
-      L.max_sites != shape.max_sites) {
+      L.max_sites != shape.max_sites || (L.max_sites > 0 && L.site_features != shape.site_features)) {
     throw std::invalid_argument("the policy was trained on scene '" + trainer_->config().scene +
                                 "'; this batch has other entity maxima");
   }
