@@ -305,7 +305,15 @@ void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect
 
 // ---------------------------------------------------------------------------------------------------------------
 // Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
-enum class Placement : uint8_t { kUniform, kQuadrant, kOutsideQuadrant, kCloseTo, kInRoom, kMiddle };
+enum class Placement : uint8_t {
+  kUniform,
+  kQuadrant,
+  kOutsideQuadrant,
+  kCloseTo,
+  kInRoom,
+  kMiddle,
+  kSpawnQuarter
+};
 constexpr double kMiddleFraction = 0.7;       // shelter's cylinder: uniform_placement_middle(0.7)
 constexpr double kSiteMiddleFraction = 0.85;  // blueprint's sites: uniform_away_from_walls (SPEC §9.1)
 
@@ -333,6 +341,10 @@ Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, co
       const int i = rng.uniform_int(room.x0, std::max(room.x0, room.x1 - cx) + 1);
       return {i, rng.uniform_int(room.y0, std::max(room.y0, room.y1 - cy) + 1)};
     }
+    case Placement::kSpawnQuarter: {  // footprint inside cells 1 .. kQ - 1: x, y in [0.2, 3.0] m
+      const int i = rng.uniform_int(1, std::max(2, kQ - cx + 1));
+      return {i, rng.uniform_int(1, std::max(2, kQ - cy + 1))};
+    }
     case Placement::kQuadrant: {
       const int i = rng.uniform_int(kG - kQ, kG - cx - 1);
       return {i, rng.uniform_int(1, kQ - cy - 1)};
@@ -359,11 +371,11 @@ Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, co
 // What one object needs from the rejection placement.
 struct Request {
   Placement placement = Placement::kUniform;
-  double sx = 0, sy = 0, sz = 0;  // full extents, m
-  double z = 0;                   // spawn height of the centre, m
-  Cell anchor;                    // kCloseTo: the anchor's spawn cell
-  int radius_cells = 0;           // kCloseTo: r = ceil(radius / 0.2)
-  CellRect room{};                // kInRoom: the room's free cells
+  double sx = 0, sy = 0, sz = 0;    // full extents, m
+  double z = 0;                     // spawn height of the centre, m
+  Cell anchor;                      // kCloseTo: the anchor's spawn cell
+  int radius_cells = 0;             // kCloseTo: r = ceil(radius / 0.2)
+  CellRect room{};                  // kInRoom: the room's free cells
   double middle = kMiddleFraction;  // kMiddle: the fraction f
 };
 
@@ -420,6 +432,8 @@ const char* placement_region(Placement p) {
       return "inside its room";
     case Placement::kMiddle:
       return "in the middle of the arena";
+    case Placement::kSpawnQuarter:
+      return "in the spawn quarter (x, y in [0.2, 3.0] m)";
     case Placement::kUniform:
     default:
       return "anywhere in the arena";
@@ -591,6 +605,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       req.placement = hider ? (config.hider_uniform_placement ? Placement::kUniform : Placement::kQuadrant)
                             : Placement::kOutsideQuadrant;
     }
+    if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
     if (!place(req, tries, grid, rng, spawn, cell)) {
       const int c = footprint_cells(req.sx);
       fail = Failure{hider ? "hider" : "seeker", in_team, "agent", c, c, req.placement, 0};
@@ -603,7 +618,9 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   // Boxes (SPEC §2.6): x-elongated, y-elongated, then cubes; inside the room in the quadrant game.
   for (int b = 0; b < n.boxes; ++b) {
     Request req;
-    req.placement = quadrant ? Placement::kQuadrant : Placement::kUniform;
+    req.placement = config.spawn_quarter ? Placement::kSpawnQuarter
+                    : quadrant           ? Placement::kQuadrant
+                                         : Placement::kUniform;
     const char* kind = "cube";
     if (b < n.x_aligned) {
       req.sx = kElongatedLong, req.sy = kElongatedShort, kind = "x-elongated";
@@ -628,6 +645,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       req.placement = Placement::kInRoom;
       req.room = out.rooms[size_t(r) % out.rooms.size()];
     }
+    if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
     req.sx = req.sy = req.sz = kRampSize;
     req.z = 0.5 * kRampSize;
     if (!place(req, tries, grid, rng, spawn, cell)) {

@@ -76,6 +76,10 @@ struct SceneConfig {
   int door_size = 2;                    // cells
   bool hider_uniform_placement = true;  // quadrant: hiders anywhere (else inside the room)
   double together_radius = 0.0;         // m; > 0: agents after the first of a team spawn near it
+  // The paper's intrinsic-motivation baselines restrict the initial locations to a quarter of the game area:
+  // when set, every agent, box and ramp spawns in the quarter x, y in [0.2, 3.0] m (grid cells 1 .. 14),
+  // whatever the layout's own rule (rooms, teams, together_radius). Sites, food and the cylinder keep theirs.
+  bool spawn_quarter = false;
   // Shelter construction (SPEC §9.3): a static cylinder of this diameter range (m; 0 = no cylinder), placed
   // in the middle 70 % of the grid before the agents, seen by lidar and vision rays, not observed.
   double target_diameter_min = 0.0;
@@ -91,8 +95,8 @@ struct SceneConfig {
   IntRange food{0, 0};
   double food_middle = 0.0;
   double food_together_radius = 0.0;  // m
-  int max_tries_per_object = 10;  // rejection placement tries per object (SPEC §2.5)
-  int max_regenerations = 1000;   // whole-scene rebuilds before giving up with an error
+  int max_tries_per_object = 10;      // rejection placement tries per object (SPEC §2.5)
+  int max_regenerations = 1000;       // whole-scene rebuilds before giving up with an error
 
   static SceneConfig quadrant();
   static SceneConfig full();

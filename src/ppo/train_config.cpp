@@ -37,6 +37,7 @@ void visit_fields(Config& c, F&& f) {
   f("seekers", c.seekers, true);
   f("boxes", c.boxes, true);
   f("ramps", c.ramps, true);
+  f("spawn_quarter", c.spawn_quarter, true);
   f("envs", c.envs, true);
   f("episodes_per_iteration", c.episodes_per_iteration, true);
   f("iterations", c.iterations, false);
@@ -265,6 +266,7 @@ std::string TrainConfig::to_json() const {
     // And the count overrides only where set.
     if constexpr (std::is_same_v<std::decay_t<decltype(field)>, int>) {
       if (is_count_key(n) && field < 0) return;
+      if (n == "spawn_quarter" && field == 0) return;
     }
     out += first ? "  " : ",\n  ";
     first = false;
@@ -299,6 +301,7 @@ void TrainConfig::merge_run_json(std::string_view text, const std::string& origi
   rnd_scale = 1.0;
   init_heads = 1;
   hiders = seekers = boxes = ramps = -1;  // the scene's counts
+  spawn_quarter = 0;
   merge_json(text, origin);
 }
 
@@ -353,6 +356,7 @@ physics::WorldConfig TrainConfig::world() const {
   // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (SPEC §9).
   if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
   if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
+  if (spawn_quarter == 1) w.scene.spawn_quarter = true;
   return w;
 }
 
@@ -403,10 +407,12 @@ void TrainConfig::validate() const {
   } catch (const std::invalid_argument&) {
     check(false, "model", model, "must be one of small, paper");
   }
-  const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0;
+  const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0 || spawn_quarter != 0;
   check(!counts_set || !w.is_transfer_task(), "scene", scene,
-        "sets its own agent and object counts: the keys hiders, seekers, boxes and ramps are for the "
-        "hide-and-seek scenes (quadrant, full, empty, food, dynamic-food)");
+        "sets its own agent and object counts and spawns: the keys hiders, seekers, boxes, ramps and "
+        "spawn_quarter are for the hide-and-seek scenes (quadrant, full, empty, food, dynamic-food)");
+  check(spawn_quarter == 0 || spawn_quarter == 1, "spawn_quarter", spawn_quarter,
+        "must be 0 or 1 (false or true)");
   check(hiders >= -1 && hiders <= 32, "hiders", hiders, "must be in [0, 32] (-1 = the scene's)");
   check(seekers >= -1 && seekers <= 32, "seekers", seekers, "must be in [0, 32] (-1 = the scene's)");
   check(boxes >= -1 && boxes <= 32, "boxes", boxes, "must be in [0, 32] (-1 = the scene's)");

@@ -31,6 +31,9 @@ struct TrainConfig {
   int seekers = -1;
   int boxes = -1;
   int ramps = -1;
+  // 1: every agent, box and ramp spawns in the quarter x, y in [0.2, 3.0] m (physics::SceneConfig's
+  // spawn_quarter), as the paper's intrinsic-motivation baselines do; hide-and-seek scenes only.
+  int spawn_quarter = 0;
   // Rollouts.
   int envs = 32;                   // game instances stepped together
   int episodes_per_iteration = 1;  // whole episodes per env per iteration

@@ -388,7 +388,9 @@ TEST(Blueprint, BoxesPlacedOnTheSitesCompleteItAndTheRestOfTheEpisodeIsAbsorbed)
   for (int t = 1; t < horizon; ++t) {
     sim.step(run);
     ASSERT_EQ(s.reward[0], 0.0f) << "step " << t;
-    if (t < horizon - 1) ASSERT_EQ(s.task_complete[0], 1);
+    if (t < horizon - 1) {
+      ASSERT_EQ(s.task_complete[0], 1);
+    }
   }
   EXPECT_EQ(s.done[0], 1);
   ASSERT_EQ(sim.finished().size(), 1u);
@@ -482,9 +484,11 @@ TEST(ObjectCounting, BoxesSlideToTheirSidesAndVanishBehindTheScreens) {
       EXPECT_NEAR(s.agent_pos[ea * 3 + 1], 0.7f, 1e-4f);
       for (int k = 0; k < 6; ++k) seen_steps[size_t(e) * 6 + k] += s.vis_boxes[ea * L.max_boxes + k];
       // Box k is seen only while it is near the gap's column; after step 57 every box is hidden.
-      if (t >= 57)
-        for (int k = 0; k < 6; ++k)
+      if (t >= 57) {
+        for (int k = 0; k < 6; ++k) {
           ASSERT_EQ(s.vis_boxes[ea * L.max_boxes + k], 0) << "t " << t << " box " << k;
+        }
+      }
       if (t == horizon - 1) {
         const physics::Scene& scene = sim.world(e).scene();
         ASSERT_EQ(scene.sides.size(), 6u);
@@ -494,7 +498,9 @@ TEST(ObjectCounting, BoxesSlideToTheirSidesAndVanishBehindTheScreens) {
         }
       }
     }
-    if (t == 0) EXPECT_EQ(s.vis_boxes[0], 1) << "the first box stands in the gap";
+    if (t == 0) {
+      EXPECT_EQ(s.vis_boxes[0], 1) << "the first box stands in the gap";
+    }
     sim.step(push);
     for (int e = 0; e < c.num_envs; ++e) EXPECT_EQ(s.reward[size_t(e) * L.max_agents], 0.0f);
   }

@@ -643,6 +643,42 @@ TEST(SceneFull, TeamMatesSpawnNearTheirFirstMember) {
   }
 }
 
+// The paper's intrinsic-motivation baselines start everything movable in a quarter of the arena: with
+// spawn_quarter every agent, box and ramp lies inside x, y in [0.2, 3.0] m, in the quadrant game (whose room
+// is another quarter) and on random rooms alike, spread over the whole quarter.
+TEST(SceneGeneration, SpawnQuarterPutsAgentsBoxesAndRampsInOneQuarter) {
+  SceneConfig full = SceneConfig::full();
+  full.hiders = {1, 1};
+  full.seekers = {0, 0};
+  for (SceneConfig config : {SceneConfig::quadrant(), full}) {
+    config.spawn_quarter = true;
+    double lo_x = 6, hi_x = 0, lo_y = 6, hi_y = 0;
+    for (int seed = 0; seed < 500; ++seed) {
+      const Scene s = make_scene(config, seed);
+      ASSERT_TRUE(valid_scene(config, s)) << "seed " << seed;
+      std::vector<Spawn> movable = s.agents;
+      movable.insert(movable.end(), s.boxes.begin(), s.boxes.end());
+      movable.insert(movable.end(), s.ramps.begin(), s.ramps.end());
+      for (const Spawn& m : movable) {
+        const Rect r = rect_of(m);
+        ASSERT_TRUE(r.x0 >= 0.2 - kEps && r.x1 <= 3.0 + kEps && r.y0 >= 0.2 - kEps && r.y1 <= 3.0 + kEps)
+            << "seed " << seed << " object at " << m.x << ", " << m.y;
+        lo_x = std::min(lo_x, m.x), hi_x = std::max(hi_x, m.x);
+        lo_y = std::min(lo_y, m.y), hi_y = std::max(hi_y, m.y);
+      }
+    }
+    EXPECT_LT(lo_x, 0.6);
+    EXPECT_GT(hi_x, 2.6);
+    EXPECT_LT(lo_y, 0.6);
+    EXPECT_GT(hi_y, 2.6);
+  }
+  // Without the flag the same scenes use the whole arena.
+  bool outside = false;
+  for (int seed = 0; seed < 50 && !outside; ++seed)
+    for (const Spawn& b : make_scene(full, seed).boxes) outside = outside || b.x > 3.2 || b.y > 3.2;
+  EXPECT_TRUE(outside);
+}
+
 TEST(SceneFull, UpToEightRoomsCanBeBuilt) {
   SceneConfig config = SceneConfig::full();
   config.rooms = {8, 8};

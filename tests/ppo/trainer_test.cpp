@@ -633,8 +633,18 @@ TEST(TrainConfig, CountKeysFixTheTeamsAndKeepTheEntityTypes) {
     task.validate();
     ADD_FAILURE() << "a transfer task accepted a count key";
   } catch (const physics::ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("hiders, seekers, boxes and ramps"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("are for the hide-and-seek scenes"), std::string::npos) << e.what();
   }
+  task.hiders = -1;
+  task.spawn_quarter = 1;
+  EXPECT_THROW(task.validate(), physics::ConfigError);
+  TrainConfig quarter = tiny_quadrant();
+  quarter.set("spawn_quarter", "true");
+  EXPECT_TRUE(quarter.world().scene.spawn_quarter);
+  EXPECT_NE(quarter.to_json().find("\"spawn_quarter\": 1"), std::string::npos);
+  EXPECT_FALSE(tiny_quadrant().world().scene.spawn_quarter);
+  quarter.spawn_quarter = 2;
+  EXPECT_THROW(quarter.validate(), physics::ConfigError);
   TrainConfig nobody = tiny_quadrant();
   nobody.hiders = 0;
   nobody.seekers = 0;
