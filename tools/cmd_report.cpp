@@ -77,8 +77,14 @@ int run_report(const ReportOptions& opt) {
                    traj.string().c_str(), e.what());
     }
   }
+  // The stages need both teams: a run whose config sets one of them to 0 (a count-based baseline) has none.
+  auto no_team = [&config](const char* key) {
+    return config.contains(key) && config[key].is_number_integer() && config[key].get<int>() == 0;
+  };
   const std::string scene =
-      config.contains("scene") && config["scene"].is_string() ? config["scene"].get<std::string>() : "";
+      config.contains("scene") && config["scene"].is_string() && !no_team("hiders") && !no_team("seekers")
+          ? config["scene"].get<std::string>()
+          : "";
   const StageReport stages = detect_stages(metrics, scene);
   ReportInputs inputs;
   inputs.title = opt.title.empty() ? "hns training report: " + opt.dir : opt.title;

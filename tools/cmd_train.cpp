@@ -369,8 +369,8 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
   std::signal(SIGUSR1, on_interrupt);
   // The paper's stages (docs/training.md "Stages"), announced as each first appears; a resumed run's earlier
-  // iterations are read first, silently.
-  replay::StageTracker stages(cfg.scene);
+  // iterations are read first, silently. A run without one of the teams has no stages to detect.
+  replay::StageTracker stages(cfg.hiders == 0 || cfg.seekers == 0 ? "" : cfg.scene);
   {
     std::ifstream earlier(metrics_path);
     for (std::string line; std::getline(earlier, line);) stages.add(line);

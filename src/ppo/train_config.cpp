@@ -417,6 +417,8 @@ void TrainConfig::validate() const {
   check(seekers >= -1 && seekers <= 32, "seekers", seekers, "must be in [0, 32] (-1 = the scene's)");
   check(boxes >= -1 && boxes <= 32, "boxes", boxes, "must be in [0, 32] (-1 = the scene's)");
   check(ramps >= -1 && ramps <= 16, "ramps", ramps, "must be in [0, 16] (-1 = the scene's)");
+  check(boxes != 0 || physics::world_preset(scene).scene.boxes.max == 0, "boxes", boxes,
+        "must be at least 1 in a scene with boxes (0 would drop the network's box type)");
   check(w.max_agents() >= 1, "hiders", hiders,
         "with seekers = " + std::to_string(seekers) + ": at least one agent is required");
   w.validate();

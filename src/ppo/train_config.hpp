@@ -25,8 +25,9 @@ struct TrainConfig {
   int horizon = 0;                 // env steps per episode; 0 = the scene preset's
   // Fixed counts per episode instead of the scene's ranges (-1 = the scene's), for the hide-and-seek
   // scenes (quadrant, full, empty, food, dynamic-food): e.g. the paper's single-agent count-based baselines
-  // (hiders 1, seekers 0). An entity type the scene has keeps one observation slot (empty, masked) when its
-  // count is set to 0 or to a lone agent, so the network's inputs and checkpoints keep their types.
+  // (hiders 1, seekers 0). A lone agent keeps one empty, masked other-agent slot and a scene whose ramps are
+  // set to 0 one empty ramp slot, so the network's inputs and checkpoints keep their types; boxes may not be
+  // set to 0 in a scene that has boxes (the box type would vanish).
   int hiders = -1;
   int seekers = -1;
   int boxes = -1;

@@ -577,8 +577,6 @@ TEST(Trainer, BlueprintStartsFromAHideAndSeekCheckpointWithItsSiteEmbeddingFromT
   std::remove(mid.c_str());
 }
 
-// The paper's fine-tuning reinitialises each network's final layer norm and output layer: with init_heads = 0
-// exactly those slices (policy and value) keep the new run's seeded values, every other slice is carried.
 // The count keys fix a hide-and-seek scene's teams and objects (the paper's single-agent count-based
 // baselines): the lone agent keeps an empty other-agent slot, and a scene whose ramps are set to 0 an empty
 // ramp slot, so its checkpoint still starts a transfer task; the keys are written only where set, read back,
@@ -652,8 +650,13 @@ TEST(TrainConfig, CountKeysFixTheTeamsAndKeepTheEntityTypes) {
   TrainConfig bad = tiny_quadrant();
   bad.seekers = -2;
   EXPECT_THROW(bad.validate(), physics::ConfigError);
+  TrainConfig boxless = tiny_quadrant();
+  boxless.boxes = 0;  // would drop the network's box type
+  EXPECT_THROW(boxless.validate(), physics::ConfigError);
 }
 
+// The paper's fine-tuning reinitialises each network's final layer norm and output layer: with init_heads = 0
+// exactly those slices (policy and value) keep the new run's seeded values, every other slice is carried.
 TEST(Trainer, InitHeadsZeroStartsTheHeadsFromTheSeed) {
   const std::string path = temp_path("init_heads.bin");
   Trainer source(tiny_quadrant());

@@ -176,6 +176,23 @@ cp "$tmp/run/checkpoint.bin" "$tmp/good.bin"
 printf 'x' | dd of="$tmp/run/checkpoint.bin" bs=1 seek=200 conv=notrunc status=none
 expect_fail 2 "corrupt" train --resume "$tmp/run" --iterations 4
 cmp -s "$tmp/run/checkpoint.bin" "$tmp/good.bin" && { failed=$((failed + 1)); echo "FAIL: corruption not applied"; }
+# A lone hider in the quadrant game (the count keys of the count-based baselines): it trains, its report
+# lists the standard stages of neither team, and its checkpoint starts lock-and-return. The keys are refused
+# by a transfer task, and boxes = 0 in a scene with boxes.
+if "$hns" train --scene quadrant --set hiders=1 --set seekers=0 --set spawn_quarter=1 --envs 2 --iterations 1 \
+     --set horizon=20 --threads 1 --out "$tmp/lone" >"$tmp/log" 2>&1 &&
+   grep -q '"seekers": 0' "$tmp/lone/config.json" &&
+   "$hns" report "$tmp/lone" --html "$tmp/lone.html" >>"$tmp/log" 2>&1 && ! grep -q "^stages" "$tmp/log" &&
+   "$hns" train --scene lock-and-return --init-from "$tmp/lone/checkpoint.bin" --envs 2 --iterations 1 \
+     --threads 1 --out "$tmp/lone-lr" >>"$tmp/log" 2>&1; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: a lone-hider run, its report and its checkpoint in lock-and-return"; cat "$tmp/log"
+fi
+expect_fail 2 "spawn_quarter are for the hide-and-seek scenes" train --scene shelter --set seekers=0 --out "$tmp/no"
+expect_fail 2 "boxes = '0' is invalid" train --scene quadrant --set boxes=0 --out "$tmp/no"
+[ -e "$tmp/no" ] && { failed=$((failed + 1)); echo "FAIL: a refused count key wrote a run folder"; }
 # play --checkpoint records with the trained policy (the run's scene); report renders a run folder.
 cp "$tmp/good.bin" "$tmp/run/checkpoint.bin"
 # A torn last line of metrics.jsonl (iteration 3, cut inside a number) is dropped on resume: only whole
