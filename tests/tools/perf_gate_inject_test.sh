@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # End to end: the perf gate builds this source tree twice, once with deliberate extra work in every env step
-# (HNS_INJECT_STEP_WORK, about +60 % on the quadrant step: large enough that a disturbed pair on a shared CI
+# (HNS_INJECT_STEP_WORK, +60 to +90 % on the quadrant step: large enough that a disturbed pair on a shared CI
 # machine cannot hide it; 12000 iterations measured only +25 % on the 2-core VM on 2026-11-25, where 10 %
 # noise per pair then left the gate undecided). Passes only on the gate's regression verdict: exit status 1 *and* the injected
 # benchmark judged a regression in gate.json (a crash, exit 3, or a build failure, exit 2, fails the test).
