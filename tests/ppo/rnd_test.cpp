@@ -78,7 +78,7 @@ TEST(Rnd, ErrorIsTheMeanSquaredDifferenceOfTheTwoNetworks) {
 TEST(Rnd, PredictorGradientMatchesFiniteDifferences) {
   const nn::NetConfig cfg = nn::testing::tiny_net_config();
   Rnd rnd(cfg, 6, 0.0f);  // lr 0: the step leaves the weights, the gradient stays in grads()
-  const int n = 150;  // more than two 64-row chunks: the chunks' and groups' sums are checked too
+  const int n = 150;      // more than two 64-row chunks: the chunks' and groups' sums are checked too
   const Rows rows(cfg.obs, n, 41);
   std::vector<int32_t> all(n);
   for (int i = 0; i < n; ++i) all[size_t(i)] = i;
