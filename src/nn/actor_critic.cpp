@@ -115,6 +115,28 @@ void ActorCritic::pack_lstms(bool for_backward) const {
   }
 }
 
+void ActorCritic::set_precision(Precision p) {
+  if (p == Precision::kBf16) {
+    resolve_precision("bf16");  // throws, with the reason, where this CPU has no bf16 dot product
+    if (!packed_) packed_ = std::make_unique<PackedWeights>(params_.layout());
+  }
+  precision_ = p;
+  packed_stale_ = true;
+}
+
+Weights ActorCritic::prepare_weights(bool for_backward) const {
+  const float* values = params_.values();
+  if (precision_ == Precision::kFp32) {
+    pack_lstms(for_backward);
+    return Weights(values);
+  }
+  if (for_backward || packed_stale_) {
+    packed_->pack(values, for_backward);
+    packed_stale_ = false;
+  }
+  return Weights(values, packed_.get());
+}
+
 void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, float* policy_state,
                       float* value_state, const float* uniforms, const ActOutputs& out) const {
   const int chunk = par_.infer_chunk_agents;
@@ -122,8 +144,7 @@ void ActorCritic::act(const ObsNormView& norm, const ObsBatch& obs, int agents, 
   const int sw = state_width();
   const int nh = heads_.num_heads();
   const int nl = heads_.num_logits();
-  const float* p = params_.values();
-  pack_lstms(false);
+  const Weights p = prepare_weights(false);
   auto padded = [](int rows) { return (rows + kActRowAlign - 1) / kActRowAlign * kActRowAlign; };
   tbb::parallel_for(0, num_chunks, [&](int c) {
     ThreadWork& w = local_work(infer_work_, padded(chunk), 1);
@@ -221,8 +242,7 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
   const int nl = heads_.num_logits();
   while (group_grads_.size() < static_cast<size_t>(groups)) group_grads_.emplace_back(nfloats);
   chunk_stats_.assign(static_cast<size_t>(num_chunks) * nstats, 0.0);
-  const float* p = params_.values();
-  pack_lstms(true);
+  const Weights p = prepare_weights(true);
 
   // Each group: its chunks in order, gradients summed into its own buffer.
   tbb::parallel_for(0, groups, [&](int g) {

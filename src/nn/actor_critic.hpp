@@ -14,6 +14,7 @@
 #pragma once
 
 #include "nn/entity_net.hpp"
+#include "nn/precision.hpp"
 
 #include <oneapi/tbb/enumerable_thread_specific.h>
 
@@ -93,12 +94,21 @@ class ActorCritic {
 
   const NetConfig& config() const { return cfg_; }
   const ParallelConfig& parallel() const { return par_; }
-  ParamStore& params() { return params_; }
+  // The non-const access marks the packed bf16 weights stale: the next act() repacks them (forward_backward
+  // always packs). Change the values only through a reference obtained after the last act().
+  ParamStore& params() {
+    packed_stale_ = true;
+    return params_;
+  }
   const ParamStore& params() const { return params_; }
   const EntityNet& policy() const { return policy_; }
   const EntityNet& value() const { return value_; }
   const CategoricalHeads& heads() const { return heads_; }
   size_t num_params() const { return params_.layout().num_params(); }
+  // The precision of both networks' matrix products (nn/precision.hpp); fp32 until set. Throws
+  // std::invalid_argument for bf16 on a CPU without a native bf16 dot product.
+  void set_precision(Precision p);
+  Precision precision() const { return precision_; }
   // LSTM state floats per agent and per network: (c, h).
   int state_width() const { return 2 * cfg_.lstm; }
   // Multiply-add flops of policy + value forward over `rows` agent-steps (backward: twice that).
@@ -160,6 +170,9 @@ class ActorCritic {
   mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> train_work_;
   // Packs both LSTMs' recurrent kernels for the current params (the forward's only, or both).
   void pack_lstms(bool for_backward) const;
+  // The weights a pass reads at the current precision, packed as needed: fp32, the LSTMs' recurrent kernels;
+  // bf16, every product matrix (and, for a backward pass, their transposes).
+  Weights prepare_weights(bool for_backward) const;
 
   std::vector<FloatBuffer> group_grads_;  // [groups][buffer_floats]
   struct Chunk {
@@ -172,6 +185,9 @@ class ActorCritic {
   mutable FloatBuffer lstm_packed_buf_[2];
   mutable Lstm::Packed lstm_packed_[2];
   std::vector<double> chunk_stats_;  // [chunks, stats]
+  Precision precision_ = Precision::kFp32;
+  mutable std::unique_ptr<PackedWeights> packed_;  // bf16 forms of the product matrices
+  mutable bool packed_stale_ = true;               // packed_ does not hold the current values
 };
 
 }  // namespace hns::nn

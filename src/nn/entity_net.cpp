@@ -185,7 +185,7 @@ void inject_nn_work(int rows) {
 }
 }  // namespace
 
-void EntityNet::forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences,
+void EntityNet::forward(const Weights& params, const ObsNormView& norm, const NetInputs& in, int sequences,
                         int steps, const float* state_in, float* state_out, Work& ws,
                         const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
@@ -270,7 +270,7 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   // Dense + ReLU fused with the following layer norm.
   const Mat dense_a(b.dense_a, rows, cfg_.dense);
   dense_.forward_linear(params, CMat(b.cat_n, rows, 2 * d), dense_a);
-  dense_norm_.forward_fused(params, dense_a, params + dense_.b_offset(), Activation::kRelu, dense_a,
+  dense_norm_.forward_fused(params, dense_a, params.values + dense_.b_offset(), Activation::kRelu, dense_a,
                             Mat(b.dense_n, rows, cfg_.dense), b.dense_stats);
 
   // LSTM (if any), layer norm, head.
@@ -285,8 +285,8 @@ void EntityNet::forward(const float* params, const ObsNormView& norm, const NetI
   head_.forward(params, CMat(b.out_n, rows, u), Mat(b.head, rows, num_outputs()));
 }
 
-void EntityNet::backward(const float* params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
-                         const Lstm::Packed* lstm_packed) const {
+void EntityNet::backward(const Weights& params, float* grads, int sequences, int steps, CMat d_output,
+                         Work& ws, const Lstm::Packed* lstm_packed) const {
   Buffers& b = ws.bufs();
   const ObsShape& o = cfg_.obs;
   const int rows = sequences * steps;

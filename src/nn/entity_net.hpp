@@ -159,13 +159,13 @@ class EntityNet {
   // state_in / state_out: LSTM state [sequences, 2 * lstm] (c, h);
   // state_in null means zeros, state_out null means not written. Outputs: output(ws).
   // lstm_packed: the LSTM's recurrent kernel packed by pack_lstm() for these params (null: packed per call).
-  void forward(const float* params, const ObsNormView& norm, const NetInputs& in, int sequences, int steps,
+  void forward(const Weights& params, const ObsNormView& norm, const NetInputs& in, int sequences, int steps,
                const float* state_in, float* state_out, Work& ws,
                const Lstm::Packed* lstm_packed = nullptr) const;
   // [rows, num_outputs] of the last forward.
   CMat output(const Work& ws, int rows) const { return {ws.bufs().head, rows, num_outputs()}; }
   // Backward of the last forward on ws: d_output [rows, num_outputs]; accumulates into grads.
-  void backward(const float* params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
+  void backward(const Weights& params, float* grads, int sequences, int steps, CMat d_output, Work& ws,
                 const Lstm::Packed* lstm_packed = nullptr) const;
   // The LSTM's recurrent kernel packed once for many forward/backward calls with the same params.
   size_t lstm_packed_floats() const { return lstm_.packed_floats(); }

@@ -9,10 +9,6 @@
 namespace hns::nn {
 namespace {
 
-using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using ConstWeights = Eigen::Map<const RowMat>;
-using Weights = Eigen::Map<RowMat>;
-
 using simd::load;
 using simd::store;
 
@@ -61,11 +57,11 @@ void axpy(float a, const float* x, float* y, int n) {
   });
 }
 
-// y = act(x w + b), w [x.cols, y.cols]: the bias is the product's starting value (no zeroing pass, no
-// separate bias pass), the activation one pass over y while it is in cache.
-void dense_forward(CMat x, const float* w, const float* b, Activation act, Mat y) {
+// y = act(x w + b), w [x.cols, y.cols] (product matrix id of p): the bias is the product's starting value (no
+// zeroing pass, no separate bias pass), the activation one pass over y while it is in cache.
+void dense_forward(const Weights& p, int id, CMat x, const float* w, const float* b, Activation act, Mat y) {
   for (int r = 0; r < y.rows; ++r) std::memcpy(y.row(r), b, sizeof(float) * y.cols);
-  y.map().noalias() += x.map() * ConstWeights(w, x.cols, y.cols);
+  matmul(p, id, w, x, y, true);
   if (act != Activation::kNone)
     for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), nullptr, act, y.cols);
 }
@@ -89,37 +85,33 @@ Dense::Dense(ParamLayout& layout, const std::string& name, int in, int out, Acti
       break;
   }
   b_ = layout.add_vector(name + "/b", out, Init::kZeros);
+  id_ = layout.add_product({w_, in, out, {}});
 }
 
-void Dense::forward_linear(const float* params, CMat x, Mat z) const {
+void Dense::forward_linear(const Weights& params, CMat x, Mat z) const {
   assert(x.cols == in_ && z.cols == out_ && x.rows == z.rows);
-  z.map().noalias() = x.map() * ConstWeights(params + w_, in_, out_);
+  matmul(params, id_, params.values + w_, x, z, false);
 }
 
-void Dense::forward(const float* params, CMat x, Mat y) const {
+void Dense::forward(const Weights& params, CMat x, Mat y) const {
   assert(x.cols == in_ && y.cols == out_ && x.rows == y.rows);
-  dense_forward(x, params + w_, params + b_, act_, y);
+  dense_forward(params, id_, x, params.values + w_, params.values + b_, act_, y);
 }
 
-void Dense::backward(const float* params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
+void Dense::backward(const Weights& params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
                      bool accumulate_dx) const {
   if (act_ == Activation::kRelu)
     for (int r = 0; r < dy.rows; ++r) relu_mask(dy.row(r), y.row(r), out_, dy.row(r));
   backward_preact(params, grads, x, dy, dx, accumulate_dx);
 }
 
-void Dense::backward_preact(const float* params, float* grads, CMat x, CMat dz, Mat dx,
+void Dense::backward_preact(const Weights& params, float* grads, CMat x, CMat dz, Mat dx,
                             bool accumulate_dx) const {
   assert(x.cols == in_ && dz.cols == out_ && x.rows == dz.rows);
-  Weights(grads + w_, in_, out_).noalias() += x.map().transpose() * dz.map();
+  matmul_grad(params, x, dz, grads + w_, true);
   add_col_sums(grads + b_, dz);
   if (dx.empty()) return;
-  const ConstWeights w(params + w_, in_, out_);
-  if (accumulate_dx) {
-    dx.map().noalias() += dz.map() * w.transpose();
-  } else {
-    dx.map().noalias() = dz.map() * w.transpose();
-  }
+  matmul_t(params, id_, params.values + w_, dz, dx, accumulate_dx);
 }
 
 // ---- LayerNorm
@@ -130,31 +122,32 @@ LayerNorm::LayerNorm(ParamLayout& layout, const std::string& name, int n) : n_(n
   bias_ = layout.add_vector(name + "/bias", n, Init::kZeros);
 }
 
-void LayerNorm::forward(const float* params, CMat x, Mat y, float* stats) const {
+void LayerNorm::forward(const Weights& params, CMat x, Mat y, float* stats) const {
   for (int r = 0; r < x.rows; ++r)
-    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params + gain_, params + bias_, n_, nullptr,
-                            y.row(r), stats + 2 * static_cast<ptrdiff_t>(r));
-}
-
-void LayerNorm::forward_fused(const float* params, CMat z, const float* pre_bias, Activation act, Mat a,
-                              Mat y, float* stats) const {
-  for (int r = 0; r < z.rows; ++r)
-    kernels::act_layer_norm(z.row(r), pre_bias, act, params + gain_, params + bias_, n_, a.row(r), y.row(r),
+    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params.values + gain_,
+                            params.values + bias_, n_, nullptr, y.row(r),
                             stats + 2 * static_cast<ptrdiff_t>(r));
 }
 
-void LayerNorm::backward(const float* params, float* grads, CMat x, const float* stats, CMat dy,
+void LayerNorm::forward_fused(const Weights& params, CMat z, const float* pre_bias, Activation act, Mat a,
+                              Mat y, float* stats) const {
+  for (int r = 0; r < z.rows; ++r)
+    kernels::act_layer_norm(z.row(r), pre_bias, act, params.values + gain_, params.values + bias_, n_,
+                            a.row(r), y.row(r), stats + 2 * static_cast<ptrdiff_t>(r));
+}
+
+void LayerNorm::backward(const Weights& params, float* grads, CMat x, const float* stats, CMat dy,
                          Mat dx) const {
   for (int r = 0; r < x.rows; ++r)
-    kernels::act_layer_norm_backward(x.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params + gain_,
+    kernels::act_layer_norm_backward(x.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params.values + gain_,
                                      dy.row(r), Activation::kNone, n_, grads + gain_, grads + bias_,
                                      dx.row(r));
 }
 
-void LayerNorm::backward_fused(const float* params, float* grads, CMat a, const float* stats, Activation act,
-                               CMat dy, Mat dz, float* pre_bias_grad) const {
+void LayerNorm::backward_fused(const Weights& params, float* grads, CMat a, const float* stats,
+                               Activation act, CMat dy, Mat dz, float* pre_bias_grad) const {
   for (int r = 0; r < a.rows; ++r) {
-    kernels::act_layer_norm_backward(a.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params + gain_,
+    kernels::act_layer_norm_backward(a.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params.values + gain_,
                                      dy.row(r), act, n_, grads + gain_, grads + bias_, dz.row(r));
     if (pre_bias_grad != nullptr) add_row(pre_bias_grad, dz.row(r), n_);
   }
@@ -211,9 +204,9 @@ CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length,
 }
 
 // Per row and filter, vectorised over output positions: acc[p] = b[f] + sum_{k, c} w[k, c, f] xe_c[p + k].
-void CircConv1d::forward(const float* params, CMat x, Mat y) const {
-  const float* w = params + w_;
-  const float* b = params + b_;
+void CircConv1d::forward(const Weights& params, CMat x, Mat y) const {
+  const float* w = params.values + w_;
+  const float* b = params.values + b_;
   const int lp = conv_padded_length(length_), le = lp + kernel_ - 1;
   float xe[kConvMaxExtended];
   float acc[kConvMaxExtended];
@@ -236,7 +229,7 @@ void CircConv1d::forward(const float* params, CMat x, Mat y) const {
 
 // The weight and bias gradients are summed over the rows lane by lane (one vector accumulator per
 // parameter), and each reduced once at the end.
-void CircConv1d::backward(const float* /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
+void CircConv1d::backward(const Weights& /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
   using simd::Batch;
   float* gw = grads + w_;
   float* gb = grads + b_;
@@ -285,26 +278,28 @@ EntityEmbedding::EntityEmbedding(ParamLayout& layout, const std::string& name, i
   const int in = main_width + features;
   w_ = layout.add_kernel_xavier(name + "/w", in, width, static_cast<float>(in), static_cast<float>(width));
   b_ = layout.add_vector(name + "/b", width, Init::kZeros);
+  main_id_ = layout.add_product({w_, main_width, width, {}});
+  ent_id_ = layout.add_product({w_ + static_cast<size_t>(main_width) * width, features, width, {}});
 }
 
-void EntityEmbedding::forward(const float* params, CMat main, CMat ent, const EntitySlots& out,
+void EntityEmbedding::forward(const Weights& params, CMat main, CMat ent, const EntitySlots& out,
                               Mat scratch) const {
-  const ConstWeights w_main(params + w_, main_width_, width_);
-  const ConstWeights w_ent(params + w_ + static_cast<size_t>(main_width_) * width_, features_, width_);
+  const float* w_ent = params.values + w_ + static_cast<size_t>(main_width_) * width_;
   // The x_self part once per row, with the bias.
-  dense_forward(main, params + w_, params + b_, Activation::kNone, scratch);
+  dense_forward(params, main_id_, main, params.values + w_, params.values + b_, Activation::kNone, scratch);
   // The entity part: every slot starts from its row's x_self part (the broadcast), one strided product per
   // entity slot adds to it, then the ReLU.
   for (int r = 0; r < out.rows; ++r)
     for (int e = 0; e < out.count; ++e) std::memcpy(out.at(r, e), scratch.row(r), sizeof(float) * width_);
   for (int e = 0; e < out.count; ++e)
-    out.slot(e).map().noalias() += ent.every(e, out.count, out.rows).map() * w_ent;
+    matmul(params, ent_id_, w_ent, ent.every(e, out.count, out.rows), out.slot(e), true);
   for (int r = 0; r < out.rows; ++r)
     kernels::bias_act(out.at(r, 0), nullptr, Activation::kRelu, out.count * width_);
 }
 
-void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMat ent, const EntitySlots& out,
-                               const EntitySlots& dout, Mat scratch_rows, Mat scratch_ent, Mat d_main) const {
+void EntityEmbedding::backward(const Weights& params, float* grads, CMat main, CMat ent,
+                               const EntitySlots& out, const EntitySlots& dout, Mat scratch_rows,
+                               Mat scratch_ent, Mat d_main) const {
   // dz[r * count + e] = dout[r, e] masked by ReLU; dsum[r] = sum_e dz[r * count + e].
   for (int r = 0; r < out.rows; ++r) {
     float* sum = scratch_rows.row(r);
@@ -317,11 +312,10 @@ void EntityEmbedding::backward(const float* params, float* grads, CMat main, CMa
       add_row(sum, z, width_);
     }
   }
-  Weights(grads + w_ + static_cast<size_t>(main_width_) * width_, features_, width_).noalias() +=
-      ent.map().transpose() * scratch_ent.map();
-  Weights(grads + w_, main_width_, width_).noalias() += main.map().transpose() * scratch_rows.map();
+  matmul_grad(params, ent, scratch_ent, grads + w_ + static_cast<size_t>(main_width_) * width_, true);
+  matmul_grad(params, main, scratch_rows, grads + w_, true);
   add_col_sums(grads + b_, scratch_rows);
-  d_main.map().noalias() += scratch_rows.map() * ConstWeights(params + w_, main_width_, width_).transpose();
+  matmul_t(params, main_id_, params.values + w_, scratch_rows, d_main, true);
 }
 
 // ---- SelfAttention
@@ -364,6 +358,13 @@ SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int w
   const float std_in = std::sqrt(0.125f / static_cast<float>(width));
   if (pre_ln) ln_pre_ = LayerNorm(layout, name + "/ln_pre", width);
   qk_ = Dense(layout, name + "/qk", width, 2 * width, Activation::kNone, {Init::kNormal, std_in});
+  // The q/k product reads Wqk with its columns permuted to [q of every head, k of every head] (permute_qk).
+  std::vector<int> qk_order(static_cast<size_t>(2 * width));
+  for (int c = 0; c < width; ++c) {
+    qk_order[static_cast<size_t>(c)] = 2 * c;
+    qk_order[static_cast<size_t>(width + c)] = 2 * c + 1;
+  }
+  qk_id_ = layout.add_product({qk_.w_offset(), width, 2 * width, std::move(qk_order)});
   v_ = Dense(layout, name + "/v", width, width, Activation::kNone, {Init::kNormal, std_in});
   mlp1_ = Dense(layout, name + "/mlp1", width, width, Activation::kNone, {Init::kNormal, std_in});
   if (post_ln) ln_post_ = LayerNorm(layout, name + "/ln_post", width);
@@ -448,7 +449,7 @@ void zero_rows(Mat m, int n, int n_pad) {
 
 }  // namespace
 
-void SelfAttention::forward(const float* params, CMat x, const float* mask, int entities, Buffers& bufs,
+void SelfAttention::forward(const Weights& params, CMat x, const float* mask, int entities, Buffers& bufs,
                             Mat out) const {
   const int rows = x.rows / entities;
   const int d = width_;
@@ -480,9 +481,9 @@ void SelfAttention::forward(const float* params, CMat x, const float* mask, int 
     ln_pre_.forward(params, xc, Mat(bufs.xn, n, d), bufs.ln_pre);
     xin = CMat(bufs.xn, n, d);
   }
-  permute_qk(params + qk_.w_offset(), params + qk_.b_offset(), d, bufs.w_qk);
-  dense_forward(xin, bufs.w_qk, bufs.w_qk + static_cast<ptrdiff_t>(d) * 2 * d, Activation::kNone,
-                Mat(bufs.qk, n, 2 * d));
+  permute_qk(params.values + qk_.w_offset(), params.values + qk_.b_offset(), d, bufs.w_qk);
+  dense_forward(params, qk_id_, xin, bufs.w_qk, bufs.w_qk + static_cast<ptrdiff_t>(d) * 2 * d,
+                Activation::kNone, Mat(bufs.qk, n, 2 * d));
   v_.forward(params, xin, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   const ptrdiff_t qk_stride = 2 * d;
@@ -518,7 +519,7 @@ void SelfAttention::forward(const float* params, CMat x, const float* mask, int 
   scatter_compact(out_c, bufs.live, n_real, mask, out);
 }
 
-void SelfAttention::backward(const float* params, float* grads, CMat x, const float* mask, int entities,
+void SelfAttention::backward(const Weights& params, float* grads, CMat x, const float* mask, int entities,
                              Buffers& bufs, CMat /*out*/, CMat dout, Mat dx) const {
   const int rows = x.rows / entities;
   const int n_real = bufs.live_count;
@@ -572,12 +573,12 @@ void SelfAttention::backward(const float* params, float* grads, CMat x, const fl
   Mat d_xn(bufs.d_xn, n, d);
   // Wqk's gradient in the permuted order, then added to the interleaved parameter gradient.
   const CMat d_qk(bufs.d_qk, n, 2 * d);
-  Weights(bufs.dw_qk, d, 2 * d).noalias() = xin.map().transpose() * d_qk.map();
+  matmul_grad(params, xin, d_qk, bufs.dw_qk, false);
   float* db_qk = bufs.dw_qk + static_cast<ptrdiff_t>(d) * 2 * d;
   std::memset(db_qk, 0, sizeof(float) * 2 * d);
   add_col_sums(db_qk, d_qk);
   unpermute_qk_add(bufs.dw_qk, d, grads + qk_.w_offset(), grads + qk_.b_offset());
-  d_xn.map().noalias() = d_qk.map() * ConstWeights(bufs.w_qk, d, 2 * d).transpose();
+  matmul_t(params, qk_id_, bufs.w_qk, d_qk, d_xn, false);
   v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
   // dx: compact first (in d_xn; the residual path included), then moved to the entities' rows.
   if (pre_ln_) ln_pre_.backward(params, grads, xc, bufs.ln_pre, d_xn, d_xn);
@@ -641,6 +642,8 @@ Lstm::Lstm(ParamLayout& layout, const std::string& name, int in, int units) : in
   w_ = layout.add_kernel_xavier(name + "/w", in + units, 4 * units, static_cast<float>(in + units),
                                 static_cast<float>(4 * units));
   b_ = layout.add_vector(name + "/b", 4 * units, Init::kZeros);
+  wx_id_ = layout.add_product({w_, in, 4 * units, {}});
+  wh_id_ = layout.add_product({w_ + static_cast<size_t>(in) * 4 * units, units, 4 * units, {}});
 }
 
 void Lstm::pack(const float* params, bool for_backward, Packed& out) const {
@@ -650,17 +653,19 @@ void Lstm::pack(const float* params, bool for_backward, Packed& out) const {
   if (for_backward) kernels::gemm_pack(w_h, g4, g4, u, true, out.w_h_t);
 }
 
-void Lstm::forward(const float* params, CMat x, int sequences, int steps, const float* reset,
+void Lstm::forward(const Weights& params, CMat x, int sequences, int steps, const float* reset,
                    const float* state_in, Buffers& bufs, float* state_out, const Packed* packed) const {
   const int u = units_;
   const int g4 = 4 * u;
   const int rows = sequences * steps;
   assert(x.rows == rows && x.cols == in_ && sequences <= bufs.sequences && steps == bufs.steps);
+  // The recurrent kernel: packed float W_h (fp32), or the packed bf16 weights.
   const float* w_h_packed = packed != nullptr ? packed->w_h : bufs.packed.w_h;
-  if (packed == nullptr)
-    kernels::gemm_pack(params + w_ + static_cast<size_t>(in_) * g4, g4, u, g4, false, bufs.packed.w_h);
+  if (packed == nullptr && !params.bf16())
+    kernels::gemm_pack(params.values + w_ + static_cast<size_t>(in_) * g4, g4, u, g4, false, bufs.packed.w_h);
   // Input contributions of every step at once.
-  dense_forward(x, params + w_, params + b_, Activation::kNone, Mat(bufs.gates, rows, g4));
+  dense_forward(params, wx_id_, x, params.values + w_, params.values + b_, Activation::kNone,
+                Mat(bufs.gates, rows, g4));
   for (int t = 0; t < steps; ++t) {
     // State entering step t: the previous step's, the caller's at t = 0, zero after a reset.
     for (int b = 0; b < sequences; ++b) {
@@ -679,9 +684,14 @@ void Lstm::forward(const float* params, CMat x, int sequences, int steps, const 
       }
     }
     // Recurrent contribution for step t (rows t, t + steps, ...), then the cell nonlinearities.
-    kernels::gemm_acc_packed(bufs.h_prev + static_cast<ptrdiff_t>(t) * u, static_cast<ptrdiff_t>(steps) * u,
-                             w_h_packed, sequences, u, g4, bufs.gates + static_cast<ptrdiff_t>(t) * g4,
-                             static_cast<ptrdiff_t>(steps) * g4);
+    const int ld_h = steps * u, ld_g = steps * g4;
+    if (params.bf16()) {
+      matmul(params, wh_id_, nullptr, CMat(bufs.h_prev + static_cast<ptrdiff_t>(t) * u, sequences, u, ld_h),
+             Mat(bufs.gates + static_cast<ptrdiff_t>(t) * g4, sequences, g4, ld_g), true);
+    } else {
+      kernels::gemm_acc_packed(bufs.h_prev + static_cast<ptrdiff_t>(t) * u, ld_h, w_h_packed, sequences, u,
+                               g4, bufs.gates + static_cast<ptrdiff_t>(t) * g4, ld_g);
+    }
     for (int b = 0; b < sequences; ++b) {
       const ptrdiff_t row = b * steps + t;
       float* g = bufs.gates + row * g4;
@@ -698,15 +708,15 @@ void Lstm::forward(const float* params, CMat x, int sequences, int steps, const 
   }
 }
 
-void Lstm::backward(const float* params, float* grads, CMat x, int sequences, int steps, const float* reset,
+void Lstm::backward(const Weights& params, float* grads, CMat x, int sequences, int steps, const float* reset,
                     Buffers& bufs, CMat dh, Mat dx, const Packed* packed) const {
   const int u = units_;
   const int g4 = 4 * u;
   const int rows = sequences * steps;
-  const ConstWeights w_x(params + w_, in_, g4);
   const float* w_h_t_packed = packed != nullptr ? packed->w_h_t : bufs.packed.w_h_t;
-  if (packed == nullptr && steps > 1)
-    kernels::gemm_pack(params + w_ + static_cast<size_t>(in_) * g4, g4, g4, u, true, bufs.packed.w_h_t);
+  if (packed == nullptr && steps > 1 && !params.bf16())
+    kernels::gemm_pack(params.values + w_ + static_cast<size_t>(in_) * g4, g4, g4, u, true,
+                       bufs.packed.w_h_t);
   Mat dh_carry(bufs.dh, sequences, u);
   Mat dc_carry(bufs.dc, sequences, u);
   zero_mat(dh_carry);
@@ -723,9 +733,13 @@ void Lstm::backward(const float* params, float* grads, CMat x, int sequences, in
     }
     // Gradient w.r.t. the state entering step t; nothing flows past a reset (or out of the chunk).
     if (t == 0) break;
-    zero_mat(dh_carry);
-    kernels::gemm_acc_packed(d_gates.row(t), static_cast<ptrdiff_t>(steps) * g4, w_h_t_packed, sequences, g4,
-                             u, dh_carry.row(0), u);
+    if (params.bf16()) {
+      matmul_t(params, wh_id_, nullptr, CMat(d_gates.row(t), sequences, g4, steps * g4), dh_carry, false);
+    } else {
+      zero_mat(dh_carry);
+      kernels::gemm_acc_packed(d_gates.row(t), static_cast<ptrdiff_t>(steps) * g4, w_h_t_packed, sequences,
+                               g4, u, dh_carry.row(0), u);
+    }
     for (int b = 0; b < sequences; ++b) {
       if (reset != nullptr && reset[b * steps + t] != 0.0f) {
         std::memset(dh_carry.row(b), 0, sizeof(float) * u);
@@ -733,11 +747,10 @@ void Lstm::backward(const float* params, float* grads, CMat x, int sequences, in
       }
     }
   }
-  Weights(grads + w_, in_, g4).noalias() += x.map().transpose() * d_gates.map();
-  Weights(grads + w_ + static_cast<size_t>(in_) * g4, u, g4).noalias() +=
-      CMat(bufs.h_prev, rows, u).map().transpose() * d_gates.map();
+  matmul_grad(params, x, d_gates, grads + w_, true);
+  matmul_grad(params, CMat(bufs.h_prev, rows, u), d_gates, grads + w_ + static_cast<size_t>(in_) * g4, true);
   add_col_sums(grads + b_, d_gates);
-  if (!dx.empty()) dx.map().noalias() = d_gates.map() * w_x.transpose();
+  if (!dx.empty()) matmul_t(params, wx_id_, params.values + w_, d_gates, dx, false);
 }
 
 }  // namespace hns::nn

@@ -14,6 +14,7 @@
 
 #include "nn/kernels.hpp"
 #include "nn/params.hpp"
+#include "nn/products.hpp"
 #include "nn/tensor.hpp"
 
 #include <string>
@@ -40,14 +41,16 @@ class Dense {
   // 2 * rows * in * out.
   double flops(int rows) const { return 2.0 * rows * in_ * out_; }
 
-  void forward(const float* params, CMat x, Mat y) const;
+  void forward(const Weights& params, CMat x, Mat y) const;
   // z = x W without bias or activation (for fused epilogues).
-  void forward_linear(const float* params, CMat x, Mat z) const;
+  void forward_linear(const Weights& params, CMat x, Mat z) const;
   // dy: gradient w.r.t. y, overwritten with the pre-activation gradient (using y for the ReLU mask).
   // Accumulates dW, db; writes dx (or adds to it if accumulate_dx); dx may be empty (not needed).
-  void backward(const float* params, float* grads, CMat x, CMat y, Mat dy, Mat dx, bool accumulate_dx) const;
+  void backward(const Weights& params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
+                bool accumulate_dx) const;
   // The same from the pre-activation gradient dz.
-  void backward_preact(const float* params, float* grads, CMat x, CMat dz, Mat dx, bool accumulate_dx) const;
+  void backward_preact(const Weights& params, float* grads, CMat x, CMat dz, Mat dx,
+                       bool accumulate_dx) const;
 
  private:
   int in_ = 0;
@@ -55,6 +58,7 @@ class Dense {
   Activation act_ = Activation::kNone;
   size_t w_ = 0;  // [in, out]
   size_t b_ = 0;  // [out]
+  int id_ = 0;    // W's product registration
 };
 
 // Layer norm over the features of each row, learned gain (init 1) and bias (init 0), eps 1e-12, optionally
@@ -67,16 +71,16 @@ class LayerNorm {
 
   int n() const { return n_; }
   // y = LN(x); stats [rows, 2] receives (mean, rstd) per row.
-  void forward(const float* params, CMat x, Mat y, float* stats) const;
+  void forward(const Weights& params, CMat x, Mat y, float* stats) const;
   // a = act(z + pre_bias) (written to a, which may be z), y = LN(a).
-  void forward_fused(const float* params, CMat z, const float* pre_bias, Activation act, Mat a, Mat y,
+  void forward_fused(const Weights& params, CMat z, const float* pre_bias, Activation act, Mat a, Mat y,
                      float* stats) const;
   // dy is read; dx written (may alias dy). Accumulates dgain, dbias.
-  void backward(const float* params, float* grads, CMat x, const float* stats, CMat dy, Mat dx) const;
+  void backward(const Weights& params, float* grads, CMat x, const float* stats, CMat dy, Mat dx) const;
   // Backward of forward_fused: dz = d/dz (activation mask applied); accumulates dgain, dbias, and
   // pre_bias_grad (if not null) += colsum(dz).
-  void backward_fused(const float* params, float* grads, CMat a, const float* stats, Activation act, CMat dy,
-                      Mat dz, float* pre_bias_grad) const;
+  void backward_fused(const Weights& params, float* grads, CMat a, const float* stats, Activation act,
+                      CMat dy, Mat dz, float* pre_bias_grad) const;
 
  private:
   int n_ = 0;
@@ -97,10 +101,10 @@ class CircConv1d {
   int out_width() const { return length_ * out_ch_; }
   double flops(int rows) const { return 2.0 * rows * length_ * out_ch_ * kernel_ * in_ch_; }
 
-  void forward(const float* params, CMat x, Mat y) const;
+  void forward(const Weights& params, CMat x, Mat y) const;
   // dy overwritten with the pre-activation gradient; accumulates dW, db; no input gradient (lidar is an
   // input).
-  void backward(const float* params, float* grads, CMat x, CMat y, Mat dy) const;
+  void backward(const Weights& params, float* grads, CMat x, CMat y, Mat dy) const;
 
  private:
   int length_ = 0;
@@ -142,10 +146,10 @@ class EntityEmbedding {
   }
 
   // main [rows, main_width]; ent [rows * count, features]; scratch [rows, width]. Writes out's slots.
-  void forward(const float* params, CMat main, CMat ent, const EntitySlots& out, Mat scratch) const;
+  void forward(const Weights& params, CMat main, CMat ent, const EntitySlots& out, Mat scratch) const;
   // dout: gradient w.r.t. X (same slots, read only); out: the forward's X (ReLU mask).
   // scratch_rows [rows, width], scratch_ent [rows * count, width]. Accumulates dW, db; adds to d_main.
-  void backward(const float* params, float* grads, CMat main, CMat ent, const EntitySlots& out,
+  void backward(const Weights& params, float* grads, CMat main, CMat ent, const EntitySlots& out,
                 const EntitySlots& dout, Mat scratch_rows, Mat scratch_ent, Mat d_main) const;
 
  private:
@@ -154,6 +158,8 @@ class EntityEmbedding {
   int width_ = 0;
   size_t w_ = 0;  // [main_width + features, width]: rows [0, main_width) multiply main
   size_t b_ = 0;
+  int main_id_ = 0;  // product registrations of W's main rows and its entity rows
+  int ent_id_ = 0;
 };
 
 // Masked residual multi-head self-attention block (SPEC.md §10.2 residual_sa_block, n_mlp = 1):
@@ -223,9 +229,9 @@ class SelfAttention {
   // `entity_rows` entities in all, `pairs` (query, key) pairs in all (sum over rows of entities squared).
   double flops(double entity_rows, double pairs) const;
 
-  void forward(const float* params, CMat x, const float* mask, int entities, Buffers& bufs, Mat out) const;
+  void forward(const Weights& params, CMat x, const float* mask, int entities, Buffers& bufs, Mat out) const;
   // dout [rows * E, width] read; dx written (gradient w.r.t. x, residual path included).
-  void backward(const float* params, float* grads, CMat x, const float* mask, int entities, Buffers& bufs,
+  void backward(const Weights& params, float* grads, CMat x, const float* mask, int entities, Buffers& bufs,
                 CMat out, CMat dout, Mat dx) const;
 
  private:
@@ -235,6 +241,7 @@ class SelfAttention {
   bool post_ln_ = true;
   LayerNorm ln_pre_;
   Dense qk_;
+  int qk_id_ = 0;  // Wqk with its columns in the permuted order
   Dense v_;
   Dense mlp1_;
   LayerNorm ln_post_;
@@ -292,10 +299,10 @@ class Lstm {
   // The recurrent products (a few rows per step) read W_h packed by pack(); `packed` is that of the
   // current params (shared by many calls: the weights do not change within a minibatch), or null to pack
   // into bufs on this call.
-  void forward(const float* params, CMat x, int sequences, int steps, const float* reset,
+  void forward(const Weights& params, CMat x, int sequences, int steps, const float* reset,
                const float* state_in, Buffers& bufs, float* state_out, const Packed* packed = nullptr) const;
   // dh [rows, units] gradient w.r.t. the outputs; dx [rows, in] written. The initial state gets no gradient.
-  void backward(const float* params, float* grads, CMat x, int sequences, int steps, const float* reset,
+  void backward(const Weights& params, float* grads, CMat x, int sequences, int steps, const float* reset,
                 Buffers& bufs, CMat dh, Mat dx, const Packed* packed = nullptr) const;
   // W_h (and, for backward, W_h^T) packed for kernels::gemm_acc_packed, packed_floats() each.
   size_t packed_floats() const { return kernels::gemm_packed_floats(units_, 4 * units_); }
@@ -306,6 +313,8 @@ class Lstm {
   int units_ = 0;
   size_t w_ = 0;
   size_t b_ = 0;
+  int wx_id_ = 0;  // product registrations of W_x and W_h
+  int wh_id_ = 0;
 };
 
 }  // namespace hns::nn

@@ -14,6 +14,15 @@ size_t ParamLayout::add(ParamSlice slice) {
   return slices_.back().offset;
 }
 
+int ParamLayout::add_product(ProductMatrix m) {
+  HNS_NN_CHECK(m.rows > 0 && m.cols > 0 && m.offset + size_t(m.rows) * m.cols <= end_,
+               "product matrix outside the registered parameters");
+  HNS_NN_CHECK(m.col_map.empty() || m.col_map.size() == size_t(m.cols),
+               "product column map of another width");
+  products_.push_back(std::move(m));
+  return static_cast<int>(products_.size()) - 1;
+}
+
 size_t ParamLayout::add_kernel_xavier(const std::string& name, int rows, int cols, float fan_in,
                                       float fan_out) {
   ParamSlice s;

@@ -33,6 +33,16 @@ struct ParamSlice {
   size_t size() const { return static_cast<size_t>(rows) * cols; }
 };
 
+// A matrix the networks multiply by (registered by the layers for the bf16 products, nn/products.hpp): a
+// kernel or a block of its rows, `rows` contiguous rows of `cols` floats from `offset`, and optionally its
+// columns in another order (column j of the product's matrix is stored column col_map[j]).
+struct ProductMatrix {
+  size_t offset = 0;
+  int rows = 0;
+  int cols = 0;
+  std::vector<int> col_map;  // empty: the stored order
+};
+
 // The list of slices; offsets grow as slices are added.
 class ParamLayout {
  public:
@@ -43,6 +53,10 @@ class ParamLayout {
   size_t add_kernel_normc(const std::string& name, int rows, int cols, float std);
   size_t add_vector(const std::string& name, int cols, Init init);
 
+  // Registers a product matrix; returns its index in products().
+  int add_product(ProductMatrix m);
+  const std::vector<ProductMatrix>& products() const { return products_; }
+
   const std::vector<ParamSlice>& slices() const { return slices_; }
   size_t buffer_floats() const { return end_; }  // including alignment padding
   size_t num_params() const;                     // sum of slice sizes
@@ -51,6 +65,7 @@ class ParamLayout {
 
  private:
   std::vector<ParamSlice> slices_;
+  std::vector<ProductMatrix> products_;
   size_t end_ = 0;
 };
 

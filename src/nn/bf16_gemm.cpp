@@ -1,0 +1,298 @@
+// The AVX512-BF16 kernels of nn/bf16_gemm.hpp. Every function that uses the extension carries it in a target
+// attribute (kBf16Target), so this file builds with the library's flags (AVX2 or AVX-512 without BF16) and
+// the rest of the library never meets an instruction its CPU may lack; callers check available() first.
+#include "nn/bf16_gemm.hpp"
+
+#include <immintrin.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#define HNS_BF16_TARGET __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))
+#define HNS_BF16_INLINE HNS_BF16_TARGET inline __attribute__((always_inline))
+
+namespace hns::nn::bf16 {
+namespace {
+
+constexpr int kRowsPerTile = 6;       // 6 x 4 accumulators of AVX-512's 32 registers
+constexpr int kMaxGatherCols = 4096;  // columns of a transposed or permuted pack_b
+
+int pairs(int k) {
+  return (k + 1) / 2;
+}
+// Columns of the last panel (a multiple of 16) for n columns.
+int panel_width(int n, int n0) {
+  const int w = n - n0 < kPanel ? n - n0 : kPanel;
+  return (w + kVecCols - 1) / kVecCols * kVecCols;
+}
+
+bool is_denormal(float x) {
+  return std::fpclassify(x) == FP_SUBNORMAL;
+}
+
+// ---- vector conversion (float -> bf16, round to nearest even, as from_float)
+
+// 32 floats (lo: elements 0-15, hi: 16-31) to 32 bf16 in order.
+HNS_BF16_INLINE __m512i cvt32(__m512 lo, __m512 hi) {
+  return reinterpret_cast<__m512i>(_mm512_cvtne2ps_pbh(hi, lo));
+}
+// Pairs (x0[j], x1[j]) for j < 16: 16 dwords, low half x0's bf16, high half x1's.
+HNS_BF16_INLINE __m512i cvt_pairs(__m512 x0, __m512 x1) {
+  const __m512i both = cvt32(x0, x1);  // [x0's 16 | x1's 16]
+  const __m512i idx = _mm512_set_epi16(31, 15, 30, 14, 29, 13, 28, 12, 27, 11, 26, 10, 25, 9, 24, 8, 23, 7,
+                                       22, 6, 21, 5, 20, 4, 19, 3, 18, 2, 17, 1, 16, 0);
+  return _mm512_permutexvar_epi16(idx, both);
+}
+HNS_BF16_INLINE __m512 load_masked(const float* p, int count) {
+  if (count >= 16) return _mm512_loadu_ps(p);
+  if (count <= 0) return _mm512_setzero_ps();
+  return _mm512_maskz_loadu_ps(static_cast<__mmask16>((1u << count) - 1u), p);
+}
+
+// ---- the product
+
+// kRows rows x kVecs vectors of C from A's rows and one panel of B (ldb: the panel's width in columns).
+template <int kRows, int kVecs>
+HNS_BF16_INLINE void tile(const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int ldb, int k2, float* c,
+                          ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+  __m512 acc[kRows][kVecs];
+  for (int m = 0; m < kRows; ++m)
+    for (int v = 0; v < kVecs; ++v) {
+      const __mmask16 mk = v == kVecs - 1 ? last_mask : static_cast<__mmask16>(0xFFFF);
+      acc[m][v] = accumulate ? _mm512_maskz_loadu_ps(mk, c + m * ldc + v * kVecCols) : _mm512_setzero_ps();
+    }
+  const int32_t* a32 = reinterpret_cast<const int32_t*>(a);
+  const ptrdiff_t lda32 = lda / 2;
+  for (int p = 0; p < k2; ++p) {
+    __m512bh bv[kVecs];
+    for (int v = 0; v < kVecs; ++v)
+      bv[v] = reinterpret_cast<__m512bh>(
+          _mm512_loadu_si512(b + (static_cast<ptrdiff_t>(p) * ldb + v * kVecCols) * 2));
+    for (int m = 0; m < kRows; ++m) {
+      const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(a32[m * lda32 + p]));
+      for (int v = 0; v < kVecs; ++v) acc[m][v] = _mm512_dpbf16_ps(acc[m][v], av, bv[v]);
+    }
+  }
+  for (int m = 0; m < kRows; ++m)
+    for (int v = 0; v < kVecs; ++v) {
+      const __mmask16 mk = v == kVecs - 1 ? last_mask : static_cast<__mmask16>(0xFFFF);
+      _mm512_mask_storeu_ps(c + m * ldc + v * kVecCols, mk, acc[m][v]);
+    }
+}
+
+template <int kRows>
+HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int k2, float* c,
+                               ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+  const int ldb = vecs * kVecCols;
+  switch (vecs) {
+    case 4:
+      return tile<kRows, 4>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+    case 3:
+      return tile<kRows, 3>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+    case 2:
+      return tile<kRows, 2>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+    default:
+      return tile<kRows, 1>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+  }
+}
+
+HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c,
+                                 ptrdiff_t ldc, bool accumulate) {
+  const int k2 = pairs(k);
+  const ptrdiff_t lda = 2 * static_cast<ptrdiff_t>(k2);
+  for (int n0 = 0; n0 < n; n0 += kPanel) {
+    const int width = panel_width(n, n0);
+    const int vecs = width / kVecCols;
+    const int last_cols = n - n0 - (vecs - 1) * kVecCols;  // columns of the panel's last vector
+    const __mmask16 last_mask =
+        last_cols >= 16 ? static_cast<__mmask16>(0xFFFF) : static_cast<__mmask16>((1u << last_cols) - 1u);
+    const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * k2;
+    float* cn = c + n0;
+    int m = 0;
+    for (; m + kRowsPerTile <= rows; m += kRowsPerTile)
+      tile_cols<kRowsPerTile>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+    switch (rows - m) {
+      case 5:
+        tile_cols<5>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        break;
+      case 4:
+        tile_cols<4>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        break;
+      case 3:
+        tile_cols<3>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        break;
+      case 2:
+        tile_cols<2>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        break;
+      case 1:
+        tile_cols<1>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        break;
+      default:
+        break;
+    }
+  }
+}
+
+// ---- packing
+
+// Row pair (r0, r1) of B (r1 may be null: zeros), columns [0, n) as floats, into every panel's pair p.
+HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int k2, int p, bf16_t* out) {
+  for (int j = 0; j < n; j += kVecCols) {
+    const int count = n - j;
+    const __m512 x0 = load_masked(r0 + j, count);
+    const __m512 x1 = r1 != nullptr ? load_masked(r1 + j, count) : _mm512_setzero_ps();
+    const int n0 = j / kPanel * kPanel;
+    const int width = panel_width(n, n0);
+    bf16_t* dst =
+        out + static_cast<ptrdiff_t>(n0) * 2 * k2 + (static_cast<ptrdiff_t>(p) * width + (j - n0)) * 2;
+    _mm512_storeu_si512(dst, cvt_pairs(x0, x1));
+  }
+}
+
+HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, bool transpose,
+                                   const int* col_map, bf16_t* out) {
+  const int k2 = pairs(k);
+  // (pack_pair_rows writes whole vectors of 16 columns, zeros past n: the padding of the last panel.)
+  if (!transpose && col_map == nullptr) {
+    for (int p = 0; p < k2; ++p) {
+      const float* r0 = w + 2 * static_cast<ptrdiff_t>(p) * ldw;
+      const float* r1 = 2 * p + 1 < k ? r0 + ldw : nullptr;
+      pack_pair_rows(r0, r1, n, k2, p, out);
+    }
+    return;
+  }
+  // General case: gather each row pair of b into two float rows first (b[i, j] = w[i, map(j)], or
+  // w[j, map(i)] transposed).
+  alignas(64) float row0[kMaxGatherCols];
+  alignas(64) float row1[kMaxGatherCols];
+  if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
+  for (int p = 0; p < k2; ++p) {
+    const int i0 = 2 * p, i1 = 2 * p + 1;
+    if (transpose) {
+      const ptrdiff_t c0 = col_map != nullptr ? col_map[i0] : i0;
+      const ptrdiff_t c1 = i1 >= k ? -1 : col_map != nullptr ? col_map[i1] : i1;
+      for (int j = 0; j < n; ++j) {
+        row0[j] = w[j * ldw + c0];
+        row1[j] = c1 >= 0 ? w[j * ldw + c1] : 0.0f;
+      }
+    } else {
+      for (int j = 0; j < n; ++j) {
+        const ptrdiff_t c = col_map != nullptr ? col_map[j] : j;
+        row0[j] = w[i0 * ldw + c];
+        row1[j] = i1 < k ? w[i1 * ldw + c] : 0.0f;
+      }
+    }
+    pack_pair_rows(row0, row1, n, k2, p, out);
+  }
+}
+
+HNS_BF16_TARGET void convert_a_avx512(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out) {
+  const ptrdiff_t lda = 2 * static_cast<ptrdiff_t>(pairs(k));
+  for (int m = 0; m < rows; ++m) {
+    const float* xr = x + m * ldx;
+    bf16_t* o = out + m * lda;
+    int j = 0;
+    for (; j + 32 <= k; j += 32)
+      _mm512_storeu_si512(o + j, cvt32(_mm512_loadu_ps(xr + j), _mm512_loadu_ps(xr + j + 16)));
+    if (j < lda) {
+      // The tail (and the zero that pads an odd k), masked: 32 bf16 at most.
+      const __m512i v = cvt32(load_masked(xr + j, k - j), load_masked(xr + j + 16, k - j - 16));
+      const int count = static_cast<int>(lda - j);
+      _mm512_mask_storeu_epi16(o + j, static_cast<__mmask32>((uint64_t(1) << count) - 1u), v);
+    }
+  }
+}
+
+HNS_BF16_TARGET void convert_a_transposed_avx512(const float* x, ptrdiff_t ldx, int k, int rows,
+                                                 bf16_t* out) {
+  // out[m, i] = x[i, m]: for each pair of x's rows (i0, i0 + 1) and 16 columns m at a time, the 16 pairs
+  // are 16 dwords, one per output row.
+  const int k2 = pairs(k);
+  const ptrdiff_t lda32 = k2;  // dwords per output row
+  uint32_t* o32 = reinterpret_cast<uint32_t*>(out);
+  alignas(64) uint32_t tmp[16];
+  for (int m0 = 0; m0 < rows; m0 += 16) {
+    const int count = rows - m0 < 16 ? rows - m0 : 16;
+    for (int p = 0; p < k2; ++p) {
+      const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx + m0;
+      const __m512 x0 = load_masked(r0, count);
+      const __m512 x1 = 2 * p + 1 < k ? load_masked(r0 + ldx, count) : _mm512_setzero_ps();
+      _mm512_store_si512(tmp, cvt_pairs(x0, x1));
+      for (int j = 0; j < count; ++j) o32[(m0 + j) * lda32 + p] = tmp[j];
+    }
+  }
+}
+
+bool detect() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
+         __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512dq") &&
+         __builtin_cpu_supports("avx512bf16");
+}
+
+// Flush a denormal to a zero of its sign (vdpbf16ps and vcvtne2ps2bf16 treat denormals so).
+float flush(float x) {
+  return is_denormal(x) ? std::copysign(0.0f, x) : x;
+}
+
+}  // namespace
+
+bool available() {
+  static const bool ok = detect();
+  return ok;
+}
+
+bf16_t from_float(float x) {
+  const uint32_t u = std::bit_cast<uint32_t>(flush(x));
+  if (std::isnan(x)) return static_cast<bf16_t>((u >> 16) | 0x40u);
+  return static_cast<bf16_t>((u + 0x7FFFu + ((u >> 16) & 1u)) >> 16);
+}
+
+float to_float(bf16_t x) {
+  return std::bit_cast<float>(static_cast<uint32_t>(x) << 16);
+}
+
+size_t packed_elems(int k, int n) {
+  size_t total = 0;
+  for (int n0 = 0; n0 < n; n0 += kPanel) total += static_cast<size_t>(panel_width(n, n0)) * 2 * pairs(k);
+  return total;
+}
+
+void pack_b(const float* w, ptrdiff_t ldw, int k, int n, bool transpose, const int* col_map, bf16_t* out) {
+  pack_b_avx512(w, ldw, k, n, transpose, col_map, out);
+}
+
+void convert_a(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out) {
+  convert_a_avx512(x, ldx, rows, k, out);
+}
+
+void convert_a_transposed(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out) {
+  convert_a_transposed_avx512(x, ldx, k, rows, out);
+}
+
+void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
+          bool accumulate) {
+  gemm_avx512(a, rows, k, b, n, c, ldc, accumulate);
+}
+
+void gemm_reference(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
+                    bool accumulate) {
+  const int k2 = pairs(k);
+  for (int m = 0; m < rows; ++m)
+    for (int j = 0; j < n; ++j) {
+      const int n0 = j / kPanel * kPanel;
+      const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * k2;
+      float acc = accumulate ? c[m * ldc + j] : 0.0f;
+      for (int p = 0; p < k2; ++p) {
+        const bf16_t* bp = panel + (static_cast<ptrdiff_t>(p) * panel_width(n, n0) + (j - n0)) * 2;
+        const bf16_t* ap = a + static_cast<ptrdiff_t>(m) * 2 * k2 + 2 * p;
+        acc = flush(std::fma(flush(to_float(ap[1])), flush(to_float(bp[1])), acc));
+        acc = flush(std::fma(flush(to_float(ap[0])), flush(to_float(bp[0])), acc));
+      }
+      c[m * ldc + j] = acc;
+    }
+}
+
+}  // namespace hns::nn::bf16

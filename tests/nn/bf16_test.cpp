@@ -1,0 +1,290 @@
+// The bf16 products (issue 31): conversion, packing and the vdpbf16ps kernel against scalar references, the
+// layers' product helpers against float, and the precision chooser.
+#include <gtest/gtest.h>
+
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <random>
+#include <stdexcept>
+#include <vector>
+
+#include "nn/bf16_gemm.hpp"
+#include "nn/precision.hpp"
+#include "nn/products.hpp"
+
+namespace hns::nn {
+namespace {
+
+using bf16::bf16_t;
+
+#define SKIP_WITHOUT_BF16() \
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16: the bf16 kernels cannot run here"
+
+std::vector<float> random_floats(size_t n, uint32_t seed, float scale = 1.0f) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-scale, scale);
+  std::vector<float> v(n);
+  for (float& x : v) x = u(rng);
+  return v;
+}
+
+float bf(float x) {
+  return bf16::to_float(bf16::from_float(x));
+}
+
+// C[m, j] from unpacked float operands a [rows, k], b [k, n] in the kernel's documented order: per pair
+// (2p, 2p + 1) of k, fmaf of the odd element, then of the even one, operands rounded to bf16. The
+// independent statement of what gemm computes (no packing involved).
+void naive_product(const std::vector<float>& a, const std::vector<float>& b, int rows, int k, int n,
+                   std::vector<float>& c, bool accumulate) {
+  for (int m = 0; m < rows; ++m)
+    for (int j = 0; j < n; ++j) {
+      float acc = accumulate ? c[size_t(m) * n + j] : 0.0f;
+      for (int p = 0; 2 * p < k; ++p) {
+        const int i0 = 2 * p, i1 = 2 * p + 1;
+        if (i1 < k) acc = std::fma(bf(a[size_t(m) * k + i1]), bf(b[size_t(i1) * n + j]), acc);
+        acc = std::fma(bf(a[size_t(m) * k + i0]), bf(b[size_t(i0) * n + j]), acc);
+      }
+      c[size_t(m) * n + j] = acc;
+    }
+}
+
+TEST(NnBf16, RoundsToNearestEvenAndKeepsSpecialValues) {
+  // 1 + 2^-8 is halfway between 1 and 1 + 2^-7: ties go to the even mantissa (1); 1 + 3 * 2^-8 rounds up.
+  EXPECT_EQ(bf(1.0f + 0x1p-8f), 1.0f);
+  EXPECT_EQ(bf(1.0f + 3 * 0x1p-8f), 1.0f + 0x1p-6f);
+  EXPECT_EQ(bf(1.0f + 0x1p-8f + 0x1p-20f), 1.0f + 0x1p-7f);
+  EXPECT_EQ(bf(-2.5f), -2.5f);
+  EXPECT_TRUE(std::isnan(bf(std::numeric_limits<float>::quiet_NaN())));
+  EXPECT_EQ(bf(std::numeric_limits<float>::infinity()), std::numeric_limits<float>::infinity());
+  EXPECT_EQ(bf(3.4e38f), std::numeric_limits<float>::infinity());  // above bf16's largest finite value
+  EXPECT_EQ(bf(1e-40f), 0.0f);                                     // denormals flush to zero
+  EXPECT_TRUE(std::signbit(bf(-1e-40f)));
+}
+
+TEST(NnBf16, VectorConversionEqualsScalarForEveryLengthAndSpecialValues) {
+  SKIP_WITHOUT_BF16();
+  std::vector<float> x = random_floats(3 * 71, 1, 100.0f);
+  const float specials[] = {0.0f,
+                            -0.0f,
+                            1.0f + 0x1p-8f,
+                            1.0f + 3 * 0x1p-8f,
+                            1e-40f,
+                            -1e-40f,
+                            3.4e38f,
+                            std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity(),
+                            std::numeric_limits<float>::quiet_NaN()};
+  for (size_t i = 0; i < std::size(specials); ++i) x[7 * i + 3] = specials[i];
+  for (int k = 1; k <= 71; ++k) {
+    const int rows = 3;
+    std::vector<bf16_t> a(bf16::a_elems(rows, k), 0xFFFF);
+    bf16::convert_a(x.data(), 71, rows, k, a.data());
+    const int lda = (k + 1) / 2 * 2;
+    for (int m = 0; m < rows; ++m) {
+      for (int i = 0; i < k; ++i) {
+        const float v = x[size_t(m) * 71 + i];
+        const bf16_t want = bf16::from_float(v);
+        if (std::isnan(v)) {
+          EXPECT_TRUE(std::isnan(bf16::to_float(a[size_t(m) * lda + i])));
+        } else {
+          ASSERT_EQ(a[size_t(m) * lda + i], want)
+              << "k " << k << " row " << m << " col " << i << " value " << v;
+        }
+      }
+      if (k % 2 == 1) {
+        EXPECT_EQ(a[size_t(m) * lda + k], 0) << "the padding of an odd k is 0";
+      }
+    }
+  }
+}
+
+TEST(NnBf16, KernelMatchesTheScalarReferenceBitForBitForOddShapes) {
+  SKIP_WITHOUT_BF16();
+  const int ks[] = {1, 2, 3, 17, 32, 33, 64, 255};
+  const int ns[] = {1, 15, 16, 17, 37, 63, 64, 65, 130, 256};
+  uint32_t seed = 10;
+  for (int k : ks)
+    for (int n : ns)
+      for (int rows : {1, 5, 6, 7, 13}) {
+        const std::vector<float> a = random_floats(size_t(rows) * k, ++seed);
+        const std::vector<float> w = random_floats(size_t(k) * n, ++seed);
+        std::vector<bf16_t> ab(bf16::a_elems(rows, k)), bb(bf16::packed_elems(k, n));
+        bf16::convert_a(a.data(), k, rows, k, ab.data());
+        bf16::pack_b(w.data(), n, k, n, false, nullptr, bb.data());
+        for (bool acc : {false, true}) {
+          // Output rows wider than n (stride n + 3) with sentinels between: nothing outside C is written.
+          const int ldc = n + 3;
+          std::vector<float> c0 = random_floats(size_t(rows) * ldc, ++seed);
+          std::vector<float> c1 = c0, c2 = c0;
+          bf16::gemm(ab.data(), rows, k, bb.data(), n, c1.data(), ldc, acc);
+          bf16::gemm_reference(ab.data(), rows, k, bb.data(), n, c2.data(), ldc, acc);
+          std::vector<float> want(size_t(rows) * n);
+          for (int m = 0; m < rows; ++m)
+            for (int j = 0; j < n; ++j) want[size_t(m) * n + j] = c0[size_t(m) * ldc + j];
+          naive_product(a, w, rows, k, n, want, acc);
+          for (int m = 0; m < rows; ++m)
+            for (int j = 0; j < ldc; ++j) {
+              const size_t i = size_t(m) * ldc + j;
+              if (j >= n) {
+                ASSERT_EQ(std::bit_cast<uint32_t>(c1[i]), std::bit_cast<uint32_t>(c0[i])) << "wrote past n";
+                continue;
+              }
+              ASSERT_EQ(std::bit_cast<uint32_t>(c1[i]), std::bit_cast<uint32_t>(c2[i]))
+                  << "kernel vs reference, rows " << rows << " k " << k << " n " << n << " at " << m << ","
+                  << j;
+              ASSERT_EQ(std::bit_cast<uint32_t>(c1[i]), std::bit_cast<uint32_t>(want[size_t(m) * n + j]))
+                  << "kernel vs unpacked product, rows " << rows << " k " << k << " n " << n;
+            }
+        }
+      }
+}
+
+TEST(NnBf16, ARowsResultDoesNotDependOnTheRowsBesideIt) {
+  SKIP_WITHOUT_BF16();
+  const int k = 129, n = 200, rows = 23;
+  const std::vector<float> a = random_floats(size_t(rows) * k, 3);
+  const std::vector<float> w = random_floats(size_t(k) * n, 4);
+  std::vector<bf16_t> ab(bf16::a_elems(rows, k)), bb(bf16::packed_elems(k, n));
+  bf16::convert_a(a.data(), k, rows, k, ab.data());
+  bf16::pack_b(w.data(), n, k, n, false, nullptr, bb.data());
+  std::vector<float> all(size_t(rows) * n);
+  bf16::gemm(ab.data(), rows, k, bb.data(), n, all.data(), n, false);
+  const size_t lda = bf16::a_elems(1, k);
+  for (int m = 0; m < rows; ++m) {
+    std::vector<float> one(n);
+    bf16::gemm(ab.data() + m * lda, 1, k, bb.data(), n, one.data(), n, false);
+    ASSERT_EQ(std::memcmp(one.data(), all.data() + size_t(m) * n, sizeof(float) * n), 0) << "row " << m;
+  }
+}
+
+TEST(NnBf16, TransposedAndReorderedPackingMatchesTheirDefinition) {
+  SKIP_WITHOUT_BF16();
+  const int k = 37, n = 70, rows = 4;
+  const std::vector<float> a = random_floats(size_t(rows) * k, 5);
+  // w_t [n, k]: b = w_t^T; w_m [k, n] with its columns reversed: b[i, j] = w_m[i, n - 1 - j].
+  const std::vector<float> w_t = random_floats(size_t(n) * k, 6);
+  const std::vector<float> w_m = random_floats(size_t(k) * n, 7);
+  std::vector<int> reverse(n);
+  for (int j = 0; j < n; ++j) reverse[j] = n - 1 - j;
+  std::vector<bf16_t> ab(bf16::a_elems(rows, k)), bb(bf16::packed_elems(k, n));
+  bf16::convert_a(a.data(), k, rows, k, ab.data());
+  std::vector<float> b(size_t(k) * n), got(size_t(rows) * n), want(size_t(rows) * n);
+  for (int pass = 0; pass < 3; ++pass) {
+    for (int i = 0; i < k; ++i)
+      for (int j = 0; j < n; ++j)
+        b[size_t(i) * n + j] = pass == 0   ? w_t[size_t(j) * k + i]
+                               : pass == 1 ? w_m[size_t(i) * n + (n - 1 - j)]
+                                           : w_t[size_t(j) * k + (k - 1 - i)];
+    if (pass == 0) bf16::pack_b(w_t.data(), k, k, n, true, nullptr, bb.data());
+    if (pass == 1) bf16::pack_b(w_m.data(), n, k, n, false, reverse.data(), bb.data());
+    if (pass == 2) {
+      // transposed with a map: b[i, j] = w_t[j, map(i)], map reversing k
+      std::vector<int> rk(k);
+      for (int i = 0; i < k; ++i) rk[i] = k - 1 - i;
+      bf16::pack_b(w_t.data(), k, k, n, true, rk.data(), bb.data());
+    }
+    bf16::gemm(ab.data(), rows, k, bb.data(), n, got.data(), n, false);
+    naive_product(a, b, rows, k, n, want, false);
+    ASSERT_EQ(std::memcmp(got.data(), want.data(), sizeof(float) * got.size()), 0) << "pass " << pass;
+  }
+}
+
+TEST(NnBf16, TransposedConversionMatchesItsDefinition) {
+  SKIP_WITHOUT_BF16();
+  // x [k, rows] with a row stride: A = x^T.
+  for (int k : {1, 2, 7, 40})
+    for (int rows : {1, 15, 16, 17, 45}) {
+      const int ldx = rows + 5;
+      const std::vector<float> x = random_floats(size_t(k) * ldx, uint32_t(k * 100 + rows));
+      std::vector<bf16_t> a(bf16::a_elems(rows, k), 0xFFFF);
+      bf16::convert_a_transposed(x.data(), ldx, k, rows, a.data());
+      const int lda = (k + 1) / 2 * 2;
+      for (int m = 0; m < rows; ++m) {
+        for (int i = 0; i < k; ++i)
+          ASSERT_EQ(a[size_t(m) * lda + i], bf16::from_float(x[size_t(i) * ldx + m])) << k << " " << rows;
+        if (k % 2 == 1) {
+          ASSERT_EQ(a[size_t(m) * lda + k], 0);
+        }
+      }
+    }
+}
+
+// The layers' three product forms in bf16 stay within the bf16 rounding bound of the float products:
+// |bf16 - float| <= 2 * 2^-8 * sum_k |a_k b_k| + k * 2^-24 * that sum (operand rounding of both operands,
+// then float accumulation).
+TEST(NnBf16, LayerProductsStayWithinTheRoundingBoundOfFloat) {
+  SKIP_WITHOUT_BF16();
+  ParamLayout layout;
+  const int in = 45, out = 77, rows = 19;
+  const size_t w_off = layout.add_kernel_normal("w", in, out, 1.0f);
+  const int id = layout.add_product({w_off, in, out, {}});
+  ParamStore store(layout);
+  store.init(3);
+  PackedWeights packed(store.layout());
+  packed.pack(store.values(), true);
+  const Weights fp32(store.values()), b16(store.values(), &packed);
+  const float* w = store.values() + w_off;
+  const std::vector<float> x = random_floats(size_t(rows) * in, 8);
+  const std::vector<float> dz = random_floats(size_t(rows) * out, 9);
+  auto check = [&](const std::vector<float>& got, const std::vector<float>& want,
+                   const std::vector<float>& mag, int k, const char* what) {
+    for (size_t i = 0; i < got.size(); ++i) {
+      const double bound = (2 * 0x1p-8 + k * 0x1p-24) * mag[i] + 1e-30;
+      ASSERT_LE(std::fabs(double(got[i]) - want[i]), bound) << what << " at " << i;
+    }
+  };
+  {  // y = x W
+    std::vector<float> y1(size_t(rows) * out), y2(y1.size()), mag(y1.size());
+    matmul(fp32, id, w, CMat(x.data(), rows, in), Mat(y1.data(), rows, out), false);
+    matmul(b16, id, w, CMat(x.data(), rows, in), Mat(y2.data(), rows, out), false);
+    for (int m = 0; m < rows; ++m)
+      for (int j = 0; j < out; ++j)
+        for (int i = 0; i < in; ++i)
+          mag[size_t(m) * out + j] += std::fabs(x[size_t(m) * in + i] * w[size_t(i) * out + j]);
+    check(y2, y1, mag, in, "x W");
+  }
+  {  // dx = dz W^T
+    std::vector<float> d1(size_t(rows) * in), d2(d1.size()), mag(d1.size());
+    matmul_t(fp32, id, w, CMat(dz.data(), rows, out), Mat(d1.data(), rows, in), false);
+    matmul_t(b16, id, w, CMat(dz.data(), rows, out), Mat(d2.data(), rows, in), false);
+    for (int m = 0; m < rows; ++m)
+      for (int i = 0; i < in; ++i)
+        for (int j = 0; j < out; ++j)
+          mag[size_t(m) * in + i] += std::fabs(dz[size_t(m) * out + j] * w[size_t(i) * out + j]);
+    check(d2, d1, mag, out, "dz W^T");
+  }
+  {  // dW = x^T dz
+    std::vector<float> g1(size_t(in) * out), g2(g1.size()), mag(g1.size());
+    matmul_grad(fp32, CMat(x.data(), rows, in), CMat(dz.data(), rows, out), g1.data(), false);
+    matmul_grad(b16, CMat(x.data(), rows, in), CMat(dz.data(), rows, out), g2.data(), false);
+    for (int i = 0; i < in; ++i)
+      for (int j = 0; j < out; ++j)
+        for (int m = 0; m < rows; ++m)
+          mag[size_t(i) * out + j] += std::fabs(x[size_t(m) * in + i] * dz[size_t(m) * out + j]);
+    check(g2, g1, mag, rows, "x^T dz");
+  }
+}
+
+TEST(NnPrecision, ChooserRefusesBf16WithoutTheFeatureAndResolvesAuto) {
+  CpuFeatures none;
+  CpuFeatures with;
+  with.avx512_bf16 = true;
+  EXPECT_EQ(resolve_precision("fp32", none), Precision::kFp32);
+  EXPECT_EQ(resolve_precision("auto", none), Precision::kFp32);
+  EXPECT_EQ(resolve_precision("auto", with), Precision::kBf16);
+  EXPECT_EQ(resolve_precision("bf16", with), Precision::kBf16);
+  try {
+    resolve_precision("bf16", none);
+    FAIL() << "bf16 accepted on a CPU without AVX512-BF16";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("AVX512-BF16"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(resolve_precision("fp16", with), std::invalid_argument);
+  EXPECT_EQ(CpuFeatures::detect().avx512_bf16, bf16::available());
+}
+
+}  // namespace
+}  // namespace hns::nn
