@@ -4,6 +4,7 @@
 //   build-nn/bench/nn/bench_nn --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include "nn/actor_critic.hpp"
 #include "nn/adam.hpp"
+#include "nn/bf16_gemm.hpp"
 
 #include <benchmark/benchmark.h>
 #include <oneapi/tbb/global_control.h>
@@ -11,6 +12,7 @@
 
 #include <chrono>
 #include <memory>
+#include <string>
 #include <vector>
 
 namespace hns::nn {
@@ -59,11 +61,12 @@ void set_counters(benchmark::State& state, double agent_steps, double flops) {
 }
 
 // One inference step (policy + value forward, sampling) for 1024 agents.
-void BM_NnInfer(benchmark::State& state, const char* preset) {
+void BM_NnInfer(benchmark::State& state, const char* preset, Precision precision) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, state.range(0));
   const NetConfig cfg = net_preset(preset);
   ActorCritic ac(cfg);
   ac.params().init(1);
+  ac.set_precision(precision);
   const int agents = 1024;
   const Obs obs(cfg.obs, agents);
   const ObsNormalizer norm(cfg.obs);
@@ -78,11 +81,12 @@ void BM_NnInfer(benchmark::State& state, const char* preset) {
 }
 
 // Forward + backward + Adam over a minibatch of 256 BPTT chunks of 10 steps.
-void BM_NnTrain(benchmark::State& state, const char* preset) {
+void BM_NnTrain(benchmark::State& state, const char* preset, Precision precision) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, state.range(0));
   const NetConfig cfg = net_preset(preset);
   ActorCritic ac(cfg);
   ac.params().init(1);
+  ac.set_precision(precision);
   const int seqs = 256, steps = 10, rows = seqs * steps;
   const Obs obs(cfg.obs, rows);
   const ObsNormalizer norm(cfg.obs);
@@ -131,13 +135,61 @@ void BM_EigenGemm(benchmark::State& state) {
       benchmark::Counter(2.0 * m * k * n * threads * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
 }
 
-BENCHMARK(BM_EigenGemm)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_NnInfer, paper, "paper")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_NnInfer, small, "small")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_NnTrain, paper, "paper")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_NnTrain, small, "small")->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+// The bf16 reference: the same shape through the bf16 kernel (operands converted and packed once, outside
+// the timed loop), one independent product per thread.
+void BM_Bf16Gemm(benchmark::State& state) {
+  const int threads = static_cast<int>(state.range(0));
+  tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  const int m = 2560, k = 256, n = 1024;
+  std::vector<std::vector<bf16::bf16_t>> a(threads), b(threads);
+  std::vector<std::vector<float>> c(threads);
+  const std::vector<float> x(static_cast<size_t>(m) * k, 0.5f), w(static_cast<size_t>(k) * n, 0.25f);
+  for (int t = 0; t < threads; ++t) {
+    a[t].resize(bf16::a_elems(m, k));
+    b[t].resize(bf16::packed_elems(k, n));
+    c[t].resize(static_cast<size_t>(m) * n);
+    bf16::convert_a(x.data(), k, m, k, a[t].data());
+    bf16::pack_b(w.data(), n, k, n, false, nullptr, b[t].data());
+  }
+  for (auto _ : state) {
+    tbb::parallel_for(0, threads,
+                      [&](int t) { bf16::gemm(a[t].data(), m, k, b[t].data(), n, c[t].data(), n, false); });
+    benchmark::DoNotOptimize(c[0].data());
+  }
+  state.counters["GFLOP/s"] =
+      benchmark::Counter(2.0 * m * k * n * threads * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
+}
+
+void register_benchmarks() {
+  auto threads = [](benchmark::internal::Benchmark* b) {
+    b->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+  };
+  threads(benchmark::RegisterBenchmark("BM_EigenGemm", BM_EigenGemm));
+  for (const char* kind : {"Infer", "Train"})
+    for (const char* preset : {"paper", "small"}) {
+      auto fn = std::string(kind) == "Infer" ? BM_NnInfer : BM_NnTrain;
+      threads(benchmark::RegisterBenchmark((std::string("BM_Nn") + kind + "/" + preset).c_str(), fn, preset,
+                                           Precision::kFp32));
+    }
+  // The bf16 products only where this CPU runs them (tools/perf-gate adds them to its suites there).
+  if (!bf16::available()) return;
+  threads(benchmark::RegisterBenchmark("BM_Bf16Gemm", BM_Bf16Gemm));
+  for (const char* kind : {"Infer", "Train"})
+    for (const char* preset : {"paper", "small"}) {
+      auto fn = std::string(kind) == "Infer" ? BM_NnInfer : BM_NnTrain;
+      threads(benchmark::RegisterBenchmark((std::string("BM_Nn") + kind + "Bf16/" + preset).c_str(), fn, preset,
+                                           Precision::kBf16));
+    }
+}
 
 }  // namespace
 }  // namespace hns::nn
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+  hns::nn::register_benchmarks();
+  benchmark::Initialize(&argc, argv);
+  if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+  benchmark::RunSpecifiedBenchmarks();
+  benchmark::Shutdown();
+  return 0;
+}
