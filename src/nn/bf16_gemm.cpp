@@ -22,6 +22,10 @@ constexpr int kMaxGatherCols = 4096;  // columns of a transposed or permuted pac
 int pairs(int k) {
   return (k + 1) / 2;
 }
+// Rows of convert_a_transposed's layout: a whole number of vectors.
+ptrdiff_t transposed_rows(int rows) {
+  return (rows + kVecCols - 1) / kVecCols * kVecCols;
+}
 // Columns of the last panel (a multiple of 16) for n columns.
 int panel_width(int n, int n0) {
   const int w = n - n0 < kPanel ? n - n0 : kPanel;
@@ -53,9 +57,16 @@ HNS_BF16_INLINE __m512 load_masked(const float* p, int count) {
 
 // ---- the product
 
+// Where A's pair p of row m lies, in dwords from A's start: m * row + p * pair (row layout: row = pairs,
+// pair = 1; the transposed layout of convert_a_transposed: row = 1, pair = its row count rounded up).
+struct ALayout {
+  ptrdiff_t row;
+  ptrdiff_t pair;
+};
+
 // kRows rows x kVecs vectors of C from A's rows and one panel of B (ldb: the panel's width in columns).
 template <int kRows, int kVecs>
-HNS_BF16_INLINE void tile(const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int ldb, int k2, float* c,
+HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb, int k2, float* c,
                           ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
   __m512 acc[kRows][kVecs];
   for (int m = 0; m < kRows; ++m)
@@ -64,14 +75,13 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int l
       acc[m][v] = accumulate ? _mm512_maskz_loadu_ps(mk, c + m * ldc + v * kVecCols) : _mm512_setzero_ps();
     }
   const int32_t* a32 = reinterpret_cast<const int32_t*>(a);
-  const ptrdiff_t lda32 = lda / 2;
   for (int p = 0; p < k2; ++p) {
     __m512bh bv[kVecs];
     for (int v = 0; v < kVecs; ++v)
       bv[v] = reinterpret_cast<__m512bh>(
           _mm512_loadu_si512(b + (static_cast<ptrdiff_t>(p) * ldb + v * kVecCols) * 2));
     for (int m = 0; m < kRows; ++m) {
-      const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(a32[m * lda32 + p]));
+      const __m512bh av = reinterpret_cast<__m512bh>(_mm512_set1_epi32(a32[m * lda.row + p * lda.pair]));
       for (int v = 0; v < kVecs; ++v) acc[m][v] = _mm512_dpbf16_ps(acc[m][v], av, bv[v]);
     }
   }
@@ -83,7 +93,7 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int l
 }
 
 template <int kRows>
-HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ptrdiff_t lda, const bf16_t* b, int k2, float* c,
+HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2, float* c,
                                ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
   const int ldb = vecs * kVecCols;
   switch (vecs) {
@@ -98,10 +108,10 @@ HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ptrdiff_t lda, const b
   }
 }
 
-HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c,
-                                 ptrdiff_t ldc, bool accumulate) {
+HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
+                                 float* c, ptrdiff_t ldc, bool accumulate) {
   const int k2 = pairs(k);
-  const ptrdiff_t lda = 2 * static_cast<ptrdiff_t>(k2);
+  const ptrdiff_t a_step = 2 * lda.row;  // bf16 elements from one row of A to the next
   for (int n0 = 0; n0 < n; n0 += kPanel) {
     const int width = panel_width(n, n0);
     const int vecs = width / kVecCols;
@@ -112,22 +122,22 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, int rows, int k, const bf16_t*
     float* cn = c + n0;
     int m = 0;
     for (; m + kRowsPerTile <= rows; m += kRowsPerTile)
-      tile_cols<kRowsPerTile>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+      tile_cols<kRowsPerTile>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
     switch (rows - m) {
       case 5:
-        tile_cols<5>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        tile_cols<5>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
         break;
       case 4:
-        tile_cols<4>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        tile_cols<4>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
         break;
       case 3:
-        tile_cols<3>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        tile_cols<3>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
         break;
       case 2:
-        tile_cols<2>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        tile_cols<2>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
         break;
       case 1:
-        tile_cols<1>(vecs, a + m * lda, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
+        tile_cols<1>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
         break;
       default:
         break;
@@ -207,20 +217,19 @@ HNS_BF16_TARGET void convert_a_avx512(const float* x, ptrdiff_t ldx, int rows, i
 
 HNS_BF16_TARGET void convert_a_transposed_avx512(const float* x, ptrdiff_t ldx, int k, int rows,
                                                  bf16_t* out) {
-  // out[m, i] = x[i, m]: for each pair of x's rows (i0, i0 + 1) and 16 columns m at a time, the 16 pairs
-  // are 16 dwords, one per output row.
+  // Pair p of A's row m is (x[2p, m], x[2p + 1, m]): x's rows 2p and 2p + 1 interleaved, 16 columns at a
+  // time, are 16 consecutive dwords of the pair-major layout.
   const int k2 = pairs(k);
-  const ptrdiff_t lda32 = k2;  // dwords per output row
-  uint32_t* o32 = reinterpret_cast<uint32_t*>(out);
-  alignas(64) uint32_t tmp[16];
-  for (int m0 = 0; m0 < rows; m0 += 16) {
-    const int count = rows - m0 < 16 ? rows - m0 : 16;
-    for (int p = 0; p < k2; ++p) {
-      const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx + m0;
-      const __m512 x0 = load_masked(r0, count);
-      const __m512 x1 = 2 * p + 1 < k ? load_masked(r0 + ldx, count) : _mm512_setzero_ps();
-      _mm512_store_si512(tmp, cvt_pairs(x0, x1));
-      for (int j = 0; j < count; ++j) o32[(m0 + j) * lda32 + p] = tmp[j];
+  const ptrdiff_t ldm = transposed_rows(rows);
+  for (int p = 0; p < k2; ++p) {
+    const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx;
+    const float* r1 = 2 * p + 1 < k ? r0 + ldx : nullptr;
+    bf16_t* o = out + 2 * static_cast<ptrdiff_t>(p) * ldm;
+    for (int m0 = 0; m0 < rows; m0 += 16) {
+      const int count = rows - m0;
+      const __m512 x0 = load_masked(r0 + m0, count);
+      const __m512 x1 = r1 != nullptr ? load_masked(r1 + m0, count) : _mm512_setzero_ps();
+      _mm512_storeu_si512(o + 2 * m0, cvt_pairs(x0, x1));
     }
   }
 }
@@ -268,13 +277,22 @@ void convert_a(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out) {
   convert_a_avx512(x, ldx, rows, k, out);
 }
 
+size_t at_elems(int rows, int k) {
+  return 2 * static_cast<size_t>(pairs(k)) * static_cast<size_t>(transposed_rows(rows));
+}
+
 void convert_a_transposed(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out) {
   convert_a_transposed_avx512(x, ldx, k, rows, out);
 }
 
 void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
           bool accumulate) {
-  gemm_avx512(a, rows, k, b, n, c, ldc, accumulate);
+  gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, accumulate);
+}
+
+void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
+             bool accumulate) {
+  gemm_avx512(at, {1, transposed_rows(rows)}, rows, k, b, n, c, ldc, accumulate);
 }
 
 void gemm_reference(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,

@@ -46,7 +46,10 @@ inline size_t a_elems(int rows, int k) {
 void pack_b(const float* w, ptrdiff_t ldw, int k, int n, bool transpose, const int* col_map, bf16_t* out);
 // A [rows, k] from float x (row stride ldx).
 void convert_a(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out);
-// A = x^T: x [k, rows] (row stride ldx) gives A [rows, k].
+// A = x^T for x [k, rows] (row stride ldx), in the pair-major layout gemm_at reads: pair p of A's row m is
+// the dword at p * ldm + m (ldm = rows rounded up to 16), i.e. x's rows 2p and 2p + 1 interleaved, written
+// with whole-vector stores (no transposition). at_elems of them.
+size_t at_elems(int rows, int k);
 void convert_a_transposed(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out);
 // B [k, n] from float activations (row stride ldx), packed as pack_b without transpose.
 inline void pack_b_rows(const float* x, ptrdiff_t ldx, int k, int n, bf16_t* out) {
@@ -55,6 +58,9 @@ inline void pack_b_rows(const float* x, ptrdiff_t ldx, int k, int n, bf16_t* out
 
 // C [rows, n] (row stride ldc) (+)= A [rows, k] B [k, n].
 void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc, bool accumulate);
+// The same with A from convert_a_transposed (the weight gradients: C = x^T B).
+void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
+             bool accumulate);
 
 // The scalar reference of gemm: the same rounding of the operands and the same pair order per element
 // (fmaf of the odd element of a pair, then of the even one; denormal products and sums flushed to zero as

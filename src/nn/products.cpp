@@ -98,11 +98,11 @@ void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate) 
     return;
   }
   // A = x^T [x.cols, rows], B = dz [rows, dz.cols]: the sum runs over the rows, in pairs.
-  bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(x.cols, x.rows));
+  bf16_t* a = Scratch::take(scratch.a, bf16::at_elems(x.cols, x.rows));
   bf16_t* b = Scratch::take(scratch.b, bf16::packed_elems(dz.rows, dz.cols));
   bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, a);
   bf16::pack_b_rows(dz.data, dz.stride, dz.rows, dz.cols, b);
-  bf16::gemm(a, x.cols, x.rows, b, dz.cols, dw, dz.cols, accumulate);
+  bf16::gemm_at(a, x.cols, x.rows, b, dz.cols, dw, dz.cols, accumulate);
 }
 
 }  // namespace hns::nn

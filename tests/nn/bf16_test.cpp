@@ -192,24 +192,28 @@ TEST(NnBf16, TransposedAndReorderedPackingMatchesTheirDefinition) {
   }
 }
 
-TEST(NnBf16, TransposedConversionMatchesItsDefinition) {
+TEST(NnBf16, TransposedProductMatchesItsDefinition) {
   SKIP_WITHOUT_BF16();
-  // x [k, rows] with a row stride: A = x^T.
+  // C = x^T B for x [k, rows] with a row stride (the weight gradient's form), for row counts around the
+  // layout's vectors of 16 and odd k.
   for (int k : {1, 2, 7, 40})
-    for (int rows : {1, 15, 16, 17, 45}) {
-      const int ldx = rows + 5;
-      const std::vector<float> x = random_floats(size_t(k) * ldx, uint32_t(k * 100 + rows));
-      std::vector<bf16_t> a(bf16::a_elems(rows, k), 0xFFFF);
-      bf16::convert_a_transposed(x.data(), ldx, k, rows, a.data());
-      const int lda = (k + 1) / 2 * 2;
-      for (int m = 0; m < rows; ++m) {
-        for (int i = 0; i < k; ++i)
-          ASSERT_EQ(a[size_t(m) * lda + i], bf16::from_float(x[size_t(i) * ldx + m])) << k << " " << rows;
-        if (k % 2 == 1) {
-          ASSERT_EQ(a[size_t(m) * lda + k], 0);
-        }
+    for (int rows : {1, 6, 15, 16, 17, 45})
+      for (int n : {5, 64, 70}) {
+        const int ldx = rows + 5;
+        const std::vector<float> x = random_floats(size_t(k) * ldx, uint32_t(k * 100 + rows));
+        const std::vector<float> w = random_floats(size_t(k) * n, uint32_t(n));
+        std::vector<float> a(size_t(rows) * k);  // x^T, unpacked
+        for (int m = 0; m < rows; ++m)
+          for (int i = 0; i < k; ++i) a[size_t(m) * k + i] = x[size_t(i) * ldx + m];
+        std::vector<bf16_t> at(bf16::at_elems(rows, k)), bb(bf16::packed_elems(k, n));
+        bf16::convert_a_transposed(x.data(), ldx, k, rows, at.data());
+        bf16::pack_b(w.data(), n, k, n, false, nullptr, bb.data());
+        std::vector<float> got = random_floats(size_t(rows) * n, 3), want = got;
+        bf16::gemm_at(at.data(), rows, k, bb.data(), n, got.data(), n, true);
+        naive_product(a, w, rows, k, n, want, true);
+        ASSERT_EQ(std::memcmp(got.data(), want.data(), sizeof(float) * got.size()), 0)
+            << "k " << k << " rows " << rows << " n " << n;
       }
-    }
 }
 
 // The layers' three product forms in bf16 stay within the bf16 rounding bound of the float products:
