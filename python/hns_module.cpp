@@ -897,6 +897,7 @@ states (initial_state(num_envs) gives zeros; an env at step_count 0 has its stat
            py::arg("seed") = py::int_(1), "A BatchEnv of the game the checkpoint was trained on.")
       .def_property_readonly("scene", [](const Policy& p) { return p.config().scene; })
       .def_property_readonly("model", [](const Policy& p) { return p.config().model; })
+      .def_property_readonly("precision", [](const Policy& p) { return p.config().precision; })
       .def_property_readonly("config_json", [](const Policy& p) { return p.config().to_json(); })
       .def_property_readonly("state_width", &Policy::state_width)
       .def_property_readonly("max_agents", &Policy::max_agents)

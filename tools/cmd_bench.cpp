@@ -2,11 +2,12 @@
 //
 //   hns bench --scene quadrant|full|empty [--envs N] [--steps S] [--threads T] [--seed S]
 //             [--hiders H --seekers K --boxes B --ramps R] [--substeps N] [--json FILE] [--profile FILE]
-//   hns bench --nn paper|small [--threads T] [--json FILE]
+//   hns bench --nn paper|small [--threads T] [--precision fp32|bf16|auto] [--json FILE]
 #include <chrono>
 #include <cstdio>
 #include <memory>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,7 @@
 #include "cli.hpp"
 #include "nn/kernels.hpp"
 #include "nn/nn_bench.hpp"
+#include "nn/precision.hpp"
 #include "physics/presets.hpp"
 #include "ppo/obs_arrays.hpp"
 
@@ -37,6 +39,7 @@ struct BenchOptions {
   std::string profile;
   std::string nn;                   // "paper" or "small": time the networks instead of the simulator
   std::string masks = "synthetic";  // --nn inputs: synthetic, or a scene's shape and mask densities
+  std::string precision = "fp32";   // --nn: the networks' products (fp32 | bf16 | auto)
 };
 
 // Uniformly random bins for every action head.
@@ -192,12 +195,18 @@ int run_nn_bench(const BenchOptions& opt) {
   o.model = opt.nn;
   o.threads = usable_threads(opt.threads);
   o.seed = opt.seed;
+  try {
+    o.precision = hns::nn::resolve_precision(opt.precision);
+  } catch (const std::invalid_argument& e) {
+    throw phys::ConfigError(std::string("--precision: ") + e.what());
+  }
   if (opt.masks != "synthetic") measure_scene_masks(opt.masks, opt.seed, o);
   if (!opt.json.empty()) check_output_path("--json", opt.json);
   std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
               opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences,
               o.train_steps);
   std::printf("  instruction set         %s\n", hns::nn::kernels::isa_description().c_str());
+  std::printf("  precision               %s\n", hns::nn::precision_description(o.precision).c_str());
   const hns::nn::MaskDensity& d = o.masks;
   std::printf(
       "  inputs                  %s: %d other agents, %d boxes, %d ramps; present %.0f/%.0f/%.0f %%, seen "
@@ -207,29 +216,37 @@ int run_nn_bench(const BenchOptions& opt) {
       100 * d.boxes_seen, 100 * d.ramps_seen);
   std::fflush(stdout);
   const hns::nn::NnBenchResult r = hns::nn::run_nn_bench(o);
+  // Rates as a share of the GEMM reference of the precision that ran (bf16: the bf16 kernel's GEMM).
+  const bool bf16 = o.precision == hns::nn::Precision::kBf16;
+  const double reference = bf16 ? r.gemm_bf16_gflops : r.gemm_gflops;
+  const char* gemm = bf16 ? "bf16 GEMM" : "GEMM";
   std::printf("  parameters              %12zu (policy + value)\n", r.params);
-  std::printf("  inference agent-steps/s %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM), useful %.1f GFLOP/s\n",
-              r.infer_agent_steps_per_s, r.infer_gflops, 100 * r.infer_gflops / r.gemm_gflops,
+  std::printf("  inference agent-steps/s %12.0f  %7.1f GFLOP/s (%.0f%% of %s), useful %.1f GFLOP/s\n",
+              r.infer_agent_steps_per_s, r.infer_gflops, 100 * r.infer_gflops / reference, gemm,
               r.infer_useful_gflops);
-  std::printf("  training agent-steps/s  %12.0f  %7.1f GFLOP/s (%.0f%% of GEMM), useful %.1f GFLOP/s\n",
-              r.train_agent_steps_per_s, r.train_gflops, 100 * r.train_gflops / r.gemm_gflops,
+  std::printf("  training agent-steps/s  %12.0f  %7.1f GFLOP/s (%.0f%% of %s), useful %.1f GFLOP/s\n",
+              r.train_agent_steps_per_s, r.train_gflops, 100 * r.train_gflops / reference, gemm,
               r.train_useful_gflops);
   std::printf("  Eigen GEMM reference                  %7.1f GFLOP/s\n", r.gemm_gflops);
+  if (bf16) std::printf("  bf16 GEMM reference                   %7.1f GFLOP/s\n", r.gemm_bf16_gflops);
   if (!opt.json.empty()) {
-    const nlohmann::json j = {{"model", r.model},
-                              {"threads", r.threads},
-                              {"params", r.params},
-                              {"isa", hns::nn::kernels::isa_description()},
-                              {"infer_agent_steps_per_s", r.infer_agent_steps_per_s},
-                              {"train_agent_steps_per_s", r.train_agent_steps_per_s},
-                              {"infer_gflops", r.infer_gflops},
-                              {"train_gflops", r.train_gflops},
-                              {"infer_useful_gflops", r.infer_useful_gflops},
-                              {"train_useful_gflops", r.train_useful_gflops},
-                              {"masks", r.masks},
-                              {"gemm_gflops", r.gemm_gflops},
-                              {"infer_seconds", r.infer_seconds},
-                              {"train_seconds", r.train_seconds}};
+    nlohmann::json j = {{"model", r.model},
+                        {"threads", r.threads},
+                        {"params", r.params},
+                        {"isa", hns::nn::kernels::isa_description()},
+                        {"precision", r.precision},
+                        {"precision_description", r.precision_description},
+                        {"infer_agent_steps_per_s", r.infer_agent_steps_per_s},
+                        {"train_agent_steps_per_s", r.train_agent_steps_per_s},
+                        {"infer_gflops", r.infer_gflops},
+                        {"train_gflops", r.train_gflops},
+                        {"infer_useful_gflops", r.infer_useful_gflops},
+                        {"train_useful_gflops", r.train_useful_gflops},
+                        {"masks", r.masks},
+                        {"gemm_gflops", r.gemm_gflops},
+                        {"infer_seconds", r.infer_seconds},
+                        {"train_seconds", r.train_seconds}};
+    if (bf16) j["gemm_bf16_gflops"] = r.gemm_bf16_gflops;
     write_atomically(opt.json, j.dump(2) + "\n");
     std::printf("  wrote %s\n", opt.json.c_str());
   }
@@ -271,12 +288,21 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
          "random-action episodes of this scene")
       ->check(CLI::IsMember({"synthetic", "quadrant", "full"}))
       ->capture_default_str();
+  cmd->add_option("--precision", opt->precision,
+                  "With --nn: the networks' matrix products: fp32, bf16 (bf16 operands, float sums; needs "
+                  "AVX512-BF16) or auto (bf16 where the CPU has it)")
+      ->check(CLI::IsMember({"fp32", "bf16", "auto"}))
+      ->capture_default_str();
   commands.push_back({cmd, [opt, cmd] {
                         opt->seed = parse_seed("--seed", opt->seed_text);
                         if (opt->nn.empty() && cmd->count("--masks") > 0)
                           throw phys::ConfigError(
                               "--masks " + opt->masks +
                               " is invalid without --nn (it chooses the network's inputs)");
+                        if (opt->nn.empty() && cmd->count("--precision") > 0)
+                          throw phys::ConfigError("--precision " + opt->precision +
+                                                  " is invalid without --nn (it chooses the networks' "
+                                                  "products)");
                         return opt->nn.empty() ? run_bench(*opt) : run_nn_bench(*opt);
                       }});
 }

@@ -337,6 +337,8 @@ int run_eval(const EvalOptions& opt) {
       throw physics::ConfigError("--set " + kv + ": " + key + " is set by hns eval itself (see --help)");
     base.set(key, kv.substr(eq + 1));
   }
+  // --set precision=bf16 on a CPU without it: refused now (exit 2), not at the first run.
+  (void)base.resolve_precision();
   if (opt.seeds < 1 || opt.seeds > 100) {
     throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
   }

@@ -2,8 +2,8 @@
 // metrics.jsonl and checkpoint.bin (docs/training.md).
 //
 //   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
-//             [--set KEY=VALUE ...] [--out DIR | --resume DIR] [--init-from CHECKPOINT] [--overwrite]
-//             [--profile FILE]
+//             [--precision fp32|bf16|auto] [--set KEY=VALUE ...] [--out DIR | --resume DIR]
+//             [--init-from CHECKPOINT] [--overwrite] [--profile FILE]
 #include <unistd.h>
 #include <atomic>
 #include <csignal>
@@ -24,6 +24,7 @@
 #include "ppo/mpi_comm.hpp"
 #endif
 #include "nn/kernels.hpp"
+#include "nn/precision.hpp"
 #include "physics/scene.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
@@ -43,6 +44,7 @@ struct TrainOptions {
   std::optional<std::string> scene, model;
   std::optional<int> iterations, threads, envs;
   std::optional<std::string> seed;
+  std::optional<std::string> precision;
   std::vector<std::string> sets;
   std::string out;
   std::string resume;
@@ -177,6 +179,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   ppo::TrainConfig cfg;
   std::string dir = opt.out;
   const bool resume = !opt.resume.empty();
+  std::string run_precision;  // resuming: the precision of the run's config.json
   if (resume) {
     if (!opt.out.empty())
       throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
@@ -188,6 +191,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     }
     const std::string path = (fs::path(dir) / "config.json").string();
     cfg.merge_run_json(read_text(path, "--resume: run config"), path);
+    run_precision = cfg.precision;
   } else if (!opt.config_file.empty()) {
     cfg.merge_json(read_text(opt.config_file, "--config"), opt.config_file);
   }
@@ -203,6 +207,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   if (opt.threads) cfg.threads = *opt.threads;
   if (opt.envs) cfg.envs = *opt.envs;
   if (opt.seed) cfg.seed = parse_seed("--seed", *opt.seed);
+  if (opt.precision) cfg.precision = *opt.precision;
   if (opt.init_from) {
     if (resume)
       throw physics::ConfigError("--init-from and --resume: a resumed run continues from its own checkpoint");
@@ -220,6 +225,18 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
   }
   cfg.validate();
+  // The precision that runs on this machine: auto is resolved here, so config.json (and the checkpoint) name
+  // fp32 or bf16, and a resumed run keeps its precision. bf16 on a CPU without it is refused, not emulated.
+  try {
+    cfg.precision = std::string(nn::precision_name(cfg.resolve_precision()));
+  } catch (const physics::ConfigError&) {
+    if (!resume || cfg.precision != run_precision) throw;
+    throw physics::ConfigError(
+        "--resume " + dir + ": the run trains in precision " + cfg.precision +
+        " (its config.json), and this CPU has no AVX512-BF16 (bf16 is not emulated): resume it on a CPU that "
+        "has it (AMD Zen 4 or later, Intel Cooper Lake, Sapphire Rapids or later); a run keeps its "
+        "precision");
+  }
   // Every rank checks its machine for the ranks there (each counted with the largest share).
   check_memory("envs = " + std::to_string(cfg.envs) +
                    (comm.size() > 1 ? " (" + std::to_string(cfg.envs_per_rank(comm.size())) +
@@ -328,6 +345,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
               double(cfg.estimated_bytes(comm.size())) / (1 << 20), comm.size() > 1 ? " per rank" : "",
               double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
+  std::printf("  precision: %s\n", nn::precision_description(trainer.net().precision()).c_str());
   if (comm.size() > 1) {
     std::printf("  %d ranks (MPI), %d update blocks; rank 0 steps envs [%d, %d)\n", comm.size(),
                 cfg.update_blocks(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs());
@@ -556,6 +574,9 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling, 0 .. 2^64 - 1");
   sub->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
   sub->add_option("--envs", opt->envs, "Game instances stepped together");
+  sub->add_option("--precision", opt->precision,
+                  "Matrix products: fp32 | bf16 (bf16 operands, float sums; needs AVX512-BF16) | auto (bf16 "
+                  "where the CPU has it); config.json records the one that runs");
   sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");
   sub->add_option("--out", opt->out, "Run folder (default runs/SCENE-MODEL-seedS)");
   sub->add_option("--resume", opt->resume, "Continue the run in this folder from its checkpoint");

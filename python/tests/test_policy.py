@@ -27,7 +27,7 @@ def test_policy_actions_equal_hns_play(run_cli, checkpoint, blueprint_checkpoint
         assert all(1 <= ep["sites"].shape[0] <= 4 for ep in trajectory["episodes"])
 
     policy = hns.Policy.load(str(checkpoint), seed=seed)
-    assert policy.scene == scene and policy.model == "small"
+    assert policy.scene == scene and policy.model == "small" and policy.precision == "fp32"
     env = policy.make_env(num_envs=envs, threads=1, seed=seed)
     obs, _ = env.reset()
     state = policy.initial_state(envs)

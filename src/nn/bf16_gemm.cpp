@@ -57,6 +57,9 @@ HNS_BF16_INLINE __m512 load_masked(const float* p, int count) {
 
 // ---- the product
 
+// One pair of bf16 read as a 32-bit integer (the broadcast operand of vdpbf16ps); may alias bf16 storage.
+using Dword = int32_t __attribute__((may_alias));
+
 // Where A's pair p of row m lies, in dwords from A's start: m * row + p * pair (row layout: row = pairs,
 // pair = 1; the transposed layout of convert_a_transposed: row = 1, pair = its row count rounded up).
 struct ALayout {
@@ -74,7 +77,7 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb
       const __mmask16 mk = v == kVecs - 1 ? last_mask : static_cast<__mmask16>(0xFFFF);
       acc[m][v] = accumulate ? _mm512_maskz_loadu_ps(mk, c + m * ldc + v * kVecCols) : _mm512_setzero_ps();
     }
-  const int32_t* a32 = reinterpret_cast<const int32_t*>(a);
+  const Dword* a32 = reinterpret_cast<const Dword*>(a);
   for (int p = 0; p < k2; ++p) {
     __m512bh bv[kVecs];
     for (int v = 0; v < kVecs; ++v)

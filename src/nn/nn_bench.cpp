@@ -1,6 +1,7 @@
 #include "nn/nn_bench.hpp"
 
 #include "nn/adam.hpp"
+#include "nn/bf16_gemm.hpp"
 
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/parallel_for.h>
@@ -106,9 +107,12 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, static_cast<size_t>(o.threads));
 
   ActorCritic ac(cfg, o.parallel);
+  ac.set_precision(o.precision);
   ac.params().init(o.seed);
   NnBenchResult res;
   res.model = o.model;
+  res.precision = std::string(precision_name(o.precision));
+  res.precision_description = precision_description(o.precision);
   res.threads = o.threads;
   res.params = ac.num_params();
   res.masks = o.masks.name;
@@ -203,6 +207,28 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
       tbb::parallel_for(0, o.threads, [&](int t) { c[t].noalias() = a[t] * b[t]; });
     });
     res.gemm_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
+  }
+
+  // bf16 GEMM reference (precision bf16): the same shape and per-thread products on the bf16 kernel, its
+  // operands converted and packed once before the timing.
+  if (o.precision == Precision::kBf16) {
+    const int m = 2560, k = 256, n = 1024;
+    using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+    std::vector<std::vector<bf16::bf16_t>> a(o.threads), b(o.threads);
+    std::vector<std::vector<float>> c(o.threads);
+    for (int t = 0; t < o.threads; ++t) {
+      const RowMat af = RowMat::Random(m, k), bf = RowMat::Random(k, n);
+      a[t].resize(bf16::a_elems(m, k));
+      bf16::convert_a(af.data(), k, m, k, a[t].data());
+      b[t].resize(bf16::packed_elems(k, n));
+      bf16::pack_b(bf.data(), n, k, n, false, nullptr, b[t].data());
+      c[t].assign(size_t(m) * n, 0.0f);
+    }
+    const double seconds = median_seconds(o.min_seconds, [&] {
+      tbb::parallel_for(0, o.threads,
+                        [&](int t) { bf16::gemm(a[t].data(), m, k, b[t].data(), n, c[t].data(), n, false); });
+    });
+    res.gemm_bf16_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
   }
   return res;
 }

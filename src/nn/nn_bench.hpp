@@ -5,7 +5,9 @@
 //   training:  forward + backward + Adam over a minibatch of BPTT chunks (default 256 x 10 steps), with a
 //              PPO-like loss (clipped-free surrogate, entropy bonus, value regression);
 //   GEMM:      a plain Eigen float GEMM of the LSTM's training shape (2560 x 256 times 256 x 1024), one
-//              independent product per thread, as the machine's peak reference.
+//              independent product per thread, as the machine's peak reference; at precision bf16 also
+//              the bf16 kernel's GEMM of the same shape (bf16::gemm, operands converted and packed once,
+//              outside the timing), the peak reference of the bf16 path.
 // FLOPs count 2 per multiply-add of the products actually performed (dense layers, conv, LSTM, attention
 // q.k and p.v; the x_self part of each entity embedding once per agent); a backward pass counts twice the
 // forward. Elementwise work (norms, softmax, gates) is not counted. The plain figure counts every entity
@@ -14,6 +16,7 @@
 #pragma once
 
 #include "nn/actor_critic.hpp"
+#include "nn/precision.hpp"
 
 #include <cstdint>
 #include <string>
@@ -39,7 +42,8 @@ struct NnBenchOptions {
   int train_steps = 10;       // steps per chunk
   double min_seconds = 1.0;   // minimum timed duration of each of the three measurements
   uint64_t seed = 1;
-  ParallelConfig parallel;  // work partition (results do not depend on threads)
+  Precision precision = Precision::kFp32;  // of the networks' products (bf16 needs bf16::available())
+  ParallelConfig parallel;                 // work partition (results do not depend on threads)
 };
 
 struct NnBenchResult {
@@ -48,20 +52,23 @@ struct NnBenchResult {
   size_t params = 0;  // policy + value
   double infer_agent_steps_per_s = 0.0;
   double train_agent_steps_per_s = 0.0;
-  std::string masks;          // MaskDensity::name
-  double infer_gflops = 0.0;  // achieved, inference
-  double train_gflops = 0.0;  // achieved, forward + backward (Adam not counted)
+  std::string masks;                  // MaskDensity::name
+  std::string precision;              // precision_name: fp32 | bf16
+  std::string precision_description;  // precision_description: what runs the products
+  double infer_gflops = 0.0;          // achieved, inference
+  double train_gflops = 0.0;          // achieved, forward + backward (Adam not counted)
   // Achieved counting only the FLOPs of entities that are used (unmasked): the useful rate.
   double infer_useful_gflops = 0.0;
   double train_useful_gflops = 0.0;
-  double gemm_gflops = 0.0;  // Eigen GEMM reference, all threads together
+  double gemm_gflops = 0.0;       // Eigen GEMM reference, all threads together
+  double gemm_bf16_gflops = 0.0;  // bf16 GEMM reference (bf16::gemm), all threads; 0 at precision fp32
   double infer_flops_per_agent_step = 0.0;
   double train_flops_per_agent_step = 0.0;
   double infer_seconds = 0.0;  // median time of one inference step
   double train_seconds = 0.0;  // median time of one training minibatch (incl. Adam)
 };
 
-// Throws std::invalid_argument for an unknown model or non-positive sizes.
+// Throws std::invalid_argument for an unknown model, non-positive sizes or bf16 on a CPU without it.
 NnBenchResult run_nn_bench(const NnBenchOptions& options);
 
 }  // namespace hns::nn

@@ -20,7 +20,8 @@ class Policy {
  public:
   // Acts with a trainer's current networks (the trainer must outlive the policy and not train meanwhile).
   Policy(const Trainer& trainer, uint64_t seed);
-  // Loads the networks of a checkpoint (std::runtime_error naming the problem for a bad file).
+  // Loads the networks of a checkpoint (std::runtime_error naming the problem for a bad file). They act at
+  // the run's precision where this CPU has it: a bf16 run acts in fp32 on a CPU without bf16.
   static std::unique_ptr<Policy> from_checkpoint(const std::string& path, uint64_t seed);
   ~Policy();
 

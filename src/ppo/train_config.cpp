@@ -8,6 +8,7 @@
 #include <cstdlib>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <vector>
 
 #include "batch/batch_sim.hpp"
@@ -48,6 +49,7 @@ void visit_fields(Config& c, F&& f) {
   f("minibatch_chunks", c.minibatch_chunks, true);
   f("bptt", c.bptt, true);
   f("grad_groups", c.grad_groups, true);
+  f("precision", c.precision, true);
   f("lr", c.lr, true);
   f("clip", c.clip, true);
   f("entropy_coef", c.entropy_coef, true);
@@ -291,7 +293,8 @@ void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
 }
 
 void TrainConfig::merge_run_json(std::string_view text, const std::string& origin) {
-  grad_groups = 16;  // before the key existed the update always used 16 gradient groups
+  grad_groups = 16;    // before the key existed the update always used 16 gradient groups
+  precision = "fp32";  // and the networks' products were all float
   // Before these keys existed (and in a run that writes none of them, see to_json) there was no intrinsic
   // reward and fine-tuning carried the heads.
   intrinsic = "none";
@@ -329,6 +332,16 @@ std::string TrainConfig::identity_mismatch(const TrainConfig& other) const {
     ++k;
   });
   return result;
+}
+
+nn::Precision TrainConfig::resolve_precision(const nn::CpuFeatures& cpu) const {
+  if (precision != "fp32" && precision != "bf16" && precision != "auto")
+    throw ConfigError(field_error("precision", precision, "must be one of fp32, bf16, auto"));
+  try {
+    return nn::resolve_precision(precision, cpu);
+  } catch (const std::invalid_argument& e) {
+    throw ConfigError(std::string("config: ") + e.what());
+  }
 }
 
 int TrainConfig::update_blocks() const {
@@ -432,6 +445,8 @@ void TrainConfig::validate() const {
   check(epochs >= 1 && epochs <= 100, "epochs", epochs, "must be in [1, 100]");
   check(bptt >= 1 && bptt <= 1000, "bptt", bptt, "must be in [1, 1000]");
   check(grad_groups >= 1 && grad_groups <= 1024, "grad_groups", grad_groups, "must be in [1, 1024]");
+  check(precision == "fp32" || precision == "bf16" || precision == "auto", "precision", precision,
+        "must be one of fp32, bf16, auto");
   check(rollout_steps() % bptt == 0, "bptt", bptt,
         "must divide the rollout length (horizon x episodes_per_iteration)");
   // The rollout buffer holds every agent slot of every env for every step of an iteration (several KiB of

@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 
+#include "nn/precision.hpp"
 #include "physics/world.hpp"
 
 namespace hns::ppo {
@@ -51,6 +52,11 @@ struct TrainConfig {
   // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
   // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
   int grad_groups = 8;
+  // The precision of the networks' matrix products (nn/precision.hpp): "fp32", "bf16" (bf16 operands, float
+  // accumulation; needs a CPU with AVX512-BF16) or "auto" (bf16 where the CPU has it, else fp32). `hns train`
+  // resolves auto before writing config.json, so a run's files name the precision that ran. The RND
+  // networks (intrinsic = rnd) stay fp32.
+  std::string precision = "fp32";
   double lr = 3e-4;   // Adam learning rate
   double clip = 0.2;  // PPO ratio clip ε
   double entropy_coef = 0.01;
@@ -87,6 +93,10 @@ struct TrainConfig {
 
   // Throws physics::ConfigError naming the field, its value and what is allowed.
   void validate() const;
+  // The precision the networks run at on a CPU with `cpu`'s features: fp32, bf16, or for auto bf16 where
+  // the CPU has AVX512-BF16, else fp32. Throws physics::ConfigError for bf16 on a CPU without it (bf16 is
+  // never emulated) or a value that is not one of fp32, bf16, auto.
+  nn::Precision resolve_precision(const nn::CpuFeatures& cpu = nn::CpuFeatures::detect()) const;
   // Estimated peak memory of a Trainer of this config, bytes: the simulator, the rollout buffers and the
   // networks' activations per buffer row (fitted to measured resident memory; within about 25 %).
   // With `ranks` processes (MPI): the memory of the rank with the most envs.
@@ -114,7 +124,7 @@ struct TrainConfig {
   // `origin` names the source in error messages.
   void merge_json(std::string_view text, const std::string& origin);
   // The same for the config a run was made with (its config.json, a checkpoint's): a key that version did not
-  // have yet takes the value that version used (grad_groups: 16), not today's default.
+  // have yet takes the value that version used (grad_groups: 16, precision: fp32), not today's default.
   void merge_run_json(std::string_view text, const std::string& origin);
   // Fields that change results when they differ between a checkpoint and the run resuming it.
   // Returns "" when equal, else "FIELD: checkpoint has A, this run has B".

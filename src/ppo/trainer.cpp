@@ -113,6 +113,7 @@ std::string IterationMetrics::to_json() const {
     out += buf;
   };
   add("iteration", "%lld", static_cast<long long>(iteration));
+  if (!precision.empty()) out += ", \"precision\": \"" + precision + "\"";
   add("agent_steps", "%lld", static_cast<long long>(agent_steps));
   add("env_steps", "%lld", static_cast<long long>(env_steps));
   add("seconds", "%.4f", seconds);
@@ -150,6 +151,10 @@ std::string IterationMetrics::to_json() const {
 
 Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std::make_unique<Buffers>()) {
   cfg_.validate();
+  // auto becomes the precision that runs here, so config() and the checkpoint name it (ConfigError for bf16
+  // on a CPU without it).
+  const nn::Precision precision = cfg_.resolve_precision();
+  cfg_.precision = std::string(nn::precision_name(precision));
   if (comm == nullptr) {
     own_comm_ = std::make_unique<SingleProcess>();
     comm = own_comm_.get();
@@ -182,6 +187,7 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   nn::ParallelConfig par;
   par.grad_groups = cfg_.grad_groups;
   net_ = std::make_unique<nn::ActorCritic>(nc, par);
+  net_->set_precision(precision);
   net_->params().init(cfg_.seed);
   nn::AdamConfig ac;
   ac.lr = float(cfg_.lr);
@@ -204,6 +210,7 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
       throw physics::ConfigError("intrinsic = rnd runs in one process (" + std::to_string(R) +
                                  " ranks given): its predictor network learns from one rollout");
     }
+    // RND's target and predictor stay fp32 whatever the precision of the policy and value networks.
     rnd_ = std::make_unique<Rnd>(nc, cfg_.seed, float(cfg_.lr));
   }
   intrinsic_return_.assign(size_t(env1_ - env0_), 0.0);
@@ -318,6 +325,7 @@ IterationMetrics Trainer::iterate() {
   });
   ++iteration_;
   m.iteration = iteration_;
+  if (m.iteration == 1) m.precision = cfg_.precision;
   m.agent_steps = agent_steps_;
   m.env_steps = env_steps_;
   m.value_mean = value_norm_.mean();

@@ -55,7 +55,10 @@ struct ScalarNormalizer {
 
 // What one iteration measured.
 struct IterationMetrics {
-  int64_t iteration = 0;    // 1-based count of iterations done
+  int64_t iteration = 0;  // 1-based count of iterations done
+  // The networks' precision (fp32 | bf16) in a run's first iteration (the first row of metrics.jsonl);
+  // empty, and not written, in the others.
+  std::string precision;
   int64_t agent_steps = 0;  // cumulative over the run, real agents only
   int64_t env_steps = 0;    // cumulative
   double seconds = 0;       // wall time of this iteration

@@ -10,9 +10,11 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
+#include "nn/precision.hpp"
 #include "physics/scene.hpp"
 #include "ppo/obs_arrays.hpp"
 
@@ -73,6 +75,7 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("bptt", "7", "must divide the rollout length");
   rejects("grad_groups", "0", "grad_groups");
   rejects("grad_groups", "2000", "must be in [1, 1024]");
+  rejects("precision", "fp16", "precision = 'fp16' is invalid: must be one of fp32, bf16, auto");
   rejects("colour", "red", "unknown key 'colour'");
   rejects("envs", "65536", "agent-step rows in the rollout buffer");  // 80 steps x 65536 envs x 6 slots
   rejects("minibatch_chunks", "-1", "minibatch_chunks");
@@ -149,6 +152,51 @@ TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
   EXPECT_EQ(new_run.grad_groups, a.grad_groups);
 }
 
+// precision: a run made before the key existed ran in fp32; the key is part of a run's identity; auto
+// resolves to what the CPU has, and bf16 on a CPU without it is refused (ConfigError, exit 2 in hns train).
+TEST(TrainConfig, PrecisionKeyResolvesPerCpu) {
+  TrainConfig old_run;
+  old_run.precision = "auto";
+  old_run.merge_run_json("{\"epochs\": 2}", "config.json");
+  EXPECT_EQ(old_run.precision, "fp32");
+  TrainConfig bf;
+  bf.set("precision", "bf16");
+  EXPECT_NO_THROW(bf.validate());
+  EXPECT_NE(bf.to_json().find("\"precision\": \"bf16\""), std::string::npos);
+  TrainConfig back;
+  back.merge_run_json(bf.to_json(), "config.json");
+  EXPECT_EQ(back.precision, "bf16");
+  EXPECT_NE(TrainConfig().identity_mismatch(bf).find("precision: checkpoint has fp32, this run has bf16"),
+            std::string::npos);
+
+  nn::CpuFeatures without, with;
+  with.avx512_bf16 = true;
+  EXPECT_THROW(nn::resolve_precision("bf16", without), std::invalid_argument);
+  try {
+    (void)bf.resolve_precision(without);
+    ADD_FAILURE() << "bf16 was accepted on a CPU without AVX512-BF16";
+  } catch (const physics::ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("AVX512-BF16"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(bf.resolve_precision(with), nn::Precision::kBf16);
+  TrainConfig autop;
+  autop.precision = "auto";
+  EXPECT_EQ(autop.resolve_precision(without), nn::Precision::kFp32);
+  EXPECT_EQ(autop.resolve_precision(with), nn::Precision::kBf16);
+  EXPECT_EQ(TrainConfig().resolve_precision(with), nn::Precision::kFp32);
+  TrainConfig bad;
+  bad.precision = "fp16";
+  EXPECT_THROW((void)bad.resolve_precision(with), physics::ConfigError);
+
+  // A trainer names the precision that runs (auto resolved), in its config and its first metrics row.
+  TrainConfig c = tiny_quadrant();
+  c.precision = "auto";
+  Trainer t(c);
+  const std::string runs(nn::precision_name(nn::resolve_precision("auto")));
+  EXPECT_EQ(t.config().precision, runs);
+  EXPECT_EQ(std::string(nn::precision_name(t.net().precision())), runs);
+}
+
 TEST(ScalarNormalizer, DebiasedMeanAndFlooredStd) {
   ScalarNormalizer n;
   EXPECT_EQ(n.mean(), 0.0);
@@ -188,6 +236,9 @@ TEST(Trainer, RunsAnIterationWithFiniteDiagnostics) {
   EXPECT_NEAR(field("time_other"), m.t_other, 1e-4);
   EXPECT_NEAR(field("policy_loss"), m.policy_loss, 1e-5 * (1 + std::abs(m.policy_loss)));
   EXPECT_EQ(field("unstable_resets"), double(m.unstable_resets));
+  // The first row names the networks' precision; later rows do not repeat it.
+  EXPECT_NE(json.find("\"precision\": \"fp32\""), std::string::npos) << json;
+  EXPECT_EQ(t.iterate().to_json().find("precision"), std::string::npos);
 }
 
 // The rollout normalises each key of a step's observations with that key's statistics as it copies them:
@@ -221,8 +272,25 @@ TEST(ObsArrays, CopyStepNormalisesEachKeyWithItsStatistics) {
   EXPECT_EQ(logits_of(normalised, nn::ObsNormView::identity()), logits_of(raw, view));
 }
 
-TEST(Trainer, BitIdenticalForAnyThreadCount) {
-  TrainConfig c1 = tiny_quadrant();
+// The determinism tests below run for both precisions of the networks' products (bf16 where this CPU has
+// AVX512-BF16).
+class TrainerPrecision : public ::testing::TestWithParam<std::string> {
+ protected:
+  void SetUp() override {
+    if (GetParam() == "bf16" && !nn::CpuFeatures::detect().avx512_bf16)
+      GTEST_SKIP() << "this CPU has no AVX512-BF16: bf16 training cannot run here";
+  }
+  TrainConfig tiny() const {
+    TrainConfig c = tiny_quadrant();
+    c.precision = GetParam();
+    return c;
+  }
+};
+INSTANTIATE_TEST_SUITE_P(Precisions, TrainerPrecision, ::testing::Values("fp32", "bf16"),
+                         [](const ::testing::TestParamInfo<std::string>& info) { return info.param; });
+
+TEST_P(TrainerPrecision, BitIdenticalForAnyThreadCount) {
+  TrainConfig c1 = tiny();
   TrainConfig c2 = c1;
   c2.threads = 2;
   Trainer a(c1), b(c2);
@@ -234,12 +302,12 @@ TEST(Trainer, BitIdenticalForAnyThreadCount) {
 // the log-probabilities it recomputes (BPTT chunks of 10 steps, training chunk sizes) equal those the
 // rollout sampled with (one step at a time): every ratio is 1, the KL estimate 0, nothing clipped. In later
 // iterations too (the observation normaliser moves only after the update), and with padding agents.
-TEST(Trainer, FirstMinibatchRecomputesTheRolloutsLogProbabilities) {
-  TrainConfig full = tiny_quadrant();
+TEST_P(TrainerPrecision, FirstMinibatchRecomputesTheRolloutsLogProbabilities) {
+  TrainConfig full = tiny();
   full.scene = "full";
   full.horizon = 30;
   full.envs = 2;
-  for (TrainConfig config : {tiny_quadrant(), full}) {
+  for (TrainConfig config : {tiny(), full}) {
     config.epochs = 1;
     config.minibatches = 1;
     Trainer t(config);
@@ -270,12 +338,12 @@ std::string file_bytes(const std::string& path) {
 // checkpoint bytes after each later iteration (weights, Adam's moments and step, both normalisers, episode
 // counters; the random streams derive from the iteration) and the same metrics but timings. In the quadrant
 // game and in the full game with padding agents, long enough that boxes end episodes locked.
-TEST(Trainer, ResumeAfterEveryIterationIsBitIdentical) {
-  TrainConfig full = tiny_quadrant();
+TEST_P(TrainerPrecision, ResumeAfterEveryIterationIsBitIdentical) {
+  TrainConfig full = tiny();
   full.scene = "full";
   full.horizon = 30;
   full.envs = 2;
-  for (const TrainConfig& config : {tiny_quadrant(), full}) {
+  for (const TrainConfig& config : {tiny(), full}) {
     const int iterations = 5;
     Trainer straight(config);
     std::vector<std::string> metrics, checkpoints;

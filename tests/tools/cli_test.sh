@@ -50,11 +50,17 @@ else
   failed=$((failed + 1))
   echo "FAIL: bench --json run"; cat "$tmp/log"; cat "$tmp/out.json" 2>/dev/null
 fi
-# The network benchmark writes its documented fields.
-if "$hns" bench --nn small --masks quadrant --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
+# The network benchmark writes its documented fields; at precision auto, bf16 (and its GEMM reference) where
+# the CPU has AVX512-BF16.
+if grep -q avx512_bf16 /proc/cpuinfo; then nn_precision=bf16; else nn_precision=fp32; fi
+if "$hns" bench --nn small --masks quadrant --precision auto --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
    has_fields "$tmp/nn.json" model threads params isa masks infer_agent_steps_per_s train_agent_steps_per_s \
-     infer_gflops train_gflops infer_useful_gflops train_useful_gflops gemm_gflops &&
-   grep -q '"masks": "quadrant"' "$tmp/nn.json" && grep -q "instruction set" "$tmp/log"; then
+     infer_gflops train_gflops infer_useful_gflops train_useful_gflops gemm_gflops precision \
+     precision_description &&
+   grep -q "\"precision\": \"$nn_precision\"" "$tmp/nn.json" &&
+   { [ "$nn_precision" = fp32 ] || has_fields "$tmp/nn.json" gemm_bf16_gflops; } &&
+   grep -q '"masks": "quadrant"' "$tmp/nn.json" && grep -q "instruction set" "$tmp/log" &&
+   grep -q "precision  *$nn_precision" "$tmp/log"; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
@@ -64,6 +70,8 @@ expect_fail 2 "nn" bench --nn huge
 expect_fail 2 "masks" bench --nn small --masks empty
 expect_fail 2 "without --nn" bench --masks full
 expect_fail 2 "without --nn" bench --masks synthetic
+expect_fail 2 "precision" bench --nn small --precision fp16
+expect_fail 2 "without --nn" bench --precision fp32
 # A profiled run writes a Chrome trace with one event per env, step and phase (5 phases).
 if "$hns" bench --scene quadrant --envs 2 --steps 5 --profile "$tmp/trace.json" >"$tmp/log" 2>&1 &&
    grep -q '"traceEvents"' "$tmp/trace.json" && [ "$(grep -o '"ph":"X"' "$tmp/trace.json" | wc -l)" -eq 50 ]; then
@@ -135,6 +143,7 @@ expect_fail 2 "episode 0.*truncated" replay "$tmp/cut.traj" --html "$tmp/cut.htm
 expect_fail 2 "epochs" train --set epochs=0 --out "$tmp/bad"
 expect_fail 2 "unknown key 'colour'" train --set colour=red --out "$tmp/bad"
 expect_fail 2 "scene" train --scene moon --out "$tmp/bad"
+expect_fail 2 "precision = 'nonsense' is invalid: must be one of fp32, bf16, auto" train --precision nonsense --out "$tmp/bad"
 echo '{"epochs": 2,' >"$tmp/broken.json"
 expect_fail 2 "broken.json" train --config "$tmp/broken.json" --out "$tmp/bad"
 expect_fail 2 "no checkpoint.bin" train --resume "$tmp/nothing-here"
@@ -146,6 +155,8 @@ if "$hns" train --config "$tmp/train.json" --iterations 2 --threads 1 --out "$tm
      policy_loss value_loss entropy approx_kl clip_frac max_box_move_prep num_box_lock_prep max_ramp_move \
      num_ramp_lock time_simulate time_observe time_infer time_learn &&
    [ -s "$tmp/run/checkpoint.bin" ] && [ ! -e "$tmp/run/checkpoint.bin.tmp" ] &&
+   grep -q '"precision": "fp32"' "$tmp/run/config.json" && head -1 "$tmp/run/metrics.jsonl" | grep -q '"precision": "fp32"' &&
+   grep -q "precision: fp32" "$tmp/log" &&
    "$hns" train --resume "$tmp/run" --iterations 3 >>"$tmp/log" 2>&1 &&
    [ "$(wc -l <"$tmp/run/metrics.jsonl")" -eq 3 ] && grep -q "resuming" "$tmp/log"; then
   passed=$((passed + 1))
@@ -172,16 +183,21 @@ fi
 expect_fail 2 "seed = -1" train --config "$tmp/train.json" --seed -1 --out "$tmp/neg"
 expect_fail 2 "is also an input" train --resume "$tmp/run" --iterations 3 --profile "$tmp/run/metrics.jsonl"
 expect_fail 2 "seed: checkpoint has 1" train --resume "$tmp/run" --seed 5
+expect_fail 2 "precision: checkpoint has fp32, this run has bf16|precision bf16 needs a CPU with AVX512-BF16" \
+  train --resume "$tmp/run" --set precision=bf16
 cp "$tmp/run/checkpoint.bin" "$tmp/good.bin"
 printf 'x' | dd of="$tmp/run/checkpoint.bin" bs=1 seek=200 conv=notrunc status=none
 expect_fail 2 "corrupt" train --resume "$tmp/run" --iterations 4
 cmp -s "$tmp/run/checkpoint.bin" "$tmp/good.bin" && { failed=$((failed + 1)); echo "FAIL: corruption not applied"; }
 # A lone hider in the quadrant game (the count keys of the count-based baselines): it trains, its report
 # lists the standard stages of neither team, and its checkpoint starts lock-and-return. The keys are refused
-# by a transfer task, and boxes = 0 in a scene with boxes.
+# by a transfer task, and boxes = 0 in a scene with boxes. It runs at precision auto, which its config.json
+# and first metrics row record as the precision that ran (bf16 where the CPU has AVX512-BF16).
 if "$hns" train --scene quadrant --set hiders=1 --set seekers=0 --set spawn_quarter=1 --envs 2 --iterations 1 \
-     --set horizon=20 --threads 1 --out "$tmp/lone" >"$tmp/log" 2>&1 &&
+     --set horizon=20 --threads 1 --precision auto --out "$tmp/lone" >"$tmp/log" 2>&1 &&
    grep -q '"seekers": 0' "$tmp/lone/config.json" &&
+   grep -q "\"precision\": \"$nn_precision\"" "$tmp/lone/config.json" &&
+   grep -q "\"precision\": \"$nn_precision\"" "$tmp/lone/metrics.jsonl" &&
    "$hns" report "$tmp/lone" --html "$tmp/lone.html" >>"$tmp/log" 2>&1 && ! grep -q "^stages" "$tmp/log" &&
    "$hns" train --scene lock-and-return --init-from "$tmp/lone/checkpoint.bin" --envs 2 --iterations 1 \
      --threads 1 --out "$tmp/lone-lr" >>"$tmp/log" 2>&1; then
