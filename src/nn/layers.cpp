@@ -397,17 +397,36 @@ void transpose_keys(const float* rows, ptrdiff_t row_stride, int m, int len, int
   }
 }
 
-// out[0, len) = init + sum_j w[j * w_stride] * rows[j * row_stride + (0, len)] over j < m (init: out's old
-// value when accumulate, else 0), summed in j order in registers.
-void weighted_rows(const float* w, ptrdiff_t w_stride, const float* rows, ptrdiff_t row_stride, int m,
-                   int len, bool accumulate, float* out) {
+// For each output o < count: out_o[0, len) = init + sum_j w[o * w_out + j * w_stride] * rows[j * row_stride
+// + (0, len)] over j < m (out_o at out + o * out_stride; init: its old value when accumulate, else 0). Each
+// element is one fma chain in j order (the order of one output at a time); outputs go in groups of
+// kGroup, which share every load of `rows`.
+template <int kGroup>
+void weighted_rows_group(const float* w, ptrdiff_t w_out, ptrdiff_t w_stride, const float* rows,
+                         ptrdiff_t row_stride, int m, int len, bool accumulate, float* out,
+                         ptrdiff_t out_stride) {
   simd::for_each<true>(len, [&](auto tag, int c) {
     using F = decltype(tag);
-    F acc = accumulate ? simd::load<F>(out + c) : F(0.0f);
-    for (int j = 0; j < m; ++j)
-      acc = simd::fma(F(w[j * w_stride]), simd::load<F>(rows + j * row_stride + c), acc);
-    simd::store(out + c, acc);
+    F acc[kGroup];
+    for (int o = 0; o < kGroup; ++o) acc[o] = accumulate ? simd::load<F>(out + o * out_stride + c) : F(0.0f);
+    for (int j = 0; j < m; ++j) {
+      const F x = simd::load<F>(rows + j * row_stride + c);
+      for (int o = 0; o < kGroup; ++o) acc[o] = simd::fma(F(w[o * w_out + j * w_stride]), x, acc[o]);
+    }
+    for (int o = 0; o < kGroup; ++o) simd::store(out + o * out_stride + c, acc[o]);
   });
+}
+
+void weighted_rows(const float* w, ptrdiff_t w_out, ptrdiff_t w_stride, int count, const float* rows,
+                   ptrdiff_t row_stride, int m, int len, bool accumulate, float* out, ptrdiff_t out_stride) {
+  constexpr int kGroup = 4;
+  int o = 0;
+  for (; o + kGroup <= count; o += kGroup)
+    weighted_rows_group<kGroup>(w + o * w_out, w_out, w_stride, rows, row_stride, m, len, accumulate,
+                                out + o * out_stride, out_stride);
+  for (; o < count; ++o)
+    weighted_rows_group<1>(w + o * w_out, w_out, w_stride, rows, row_stride, m, len, accumulate,
+                           out + o * out_stride, out_stride);
 }
 
 // Wqk [d, 2d] and bqk [2d] (columns interleaved [heads, dh, (q, k)]) into out [d + 1, 2d]: W's rows, then
@@ -498,12 +517,12 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
       transpose_keys(kh, qk_stride, m, static_cast<int>(dh), ld, bufs.kt);
       for (int i = 0; i < m; ++i) {
-        float* pi = p + i * e_count;
         query_times_keys(qh + i * qk_stride, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
-        kernels::masked_softmax(bufs.scores, bufs.ones, scale, m, pi);
-        weighted_rows(pi, 1, bufs.v + c0 * d + h * dh, d, m, static_cast<int>(dh), false,
-                      bufs.att + (c0 + i) * d + h * dh);
+        kernels::masked_softmax(bufs.scores, bufs.ones, scale, m, p + i * e_count);
       }
+      // att_i = sum_j p[i, j] v_j for every query i.
+      weighted_rows(p, e_count, 1, m, bufs.v + c0 * d + h * dh, d, m, static_cast<int>(dh), false,
+                    bufs.att + c0 * d + h * dh, d);
     }
   }
   // res = x + mlp1(att); out = LN_post(res), compact, then moved to the entities' rows.
@@ -558,14 +577,9 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
       }
       // dv_j += sum_i p[i, j] da_i; with dl = d_p (the softmax's input gradient): dq_i = sum_j dl[i, j] k_j,
       // dk_j = sum_i dl[i, j] q_i.
-      for (int j = 0; j < m; ++j) {
-        weighted_rows(p + j, e_count, da, d, m, static_cast<int>(dh), true, bufs.d_v + (c0 + j) * d + h * dh);
-        weighted_rows(bufs.d_p + j, e_count, qh, qk_stride, m, static_cast<int>(dh), false,
-                      dkh + j * qk_stride);
-      }
-      for (int i = 0; i < m; ++i)
-        weighted_rows(bufs.d_p + i * e_count, 1, kh, qk_stride, m, static_cast<int>(dh), false,
-                      dqh + i * qk_stride);
+      weighted_rows(p, 1, e_count, m, da, d, m, static_cast<int>(dh), true, bufs.d_v + c0 * d + h * dh, d);
+      weighted_rows(bufs.d_p, 1, e_count, m, qh, qk_stride, m, static_cast<int>(dh), false, dkh, qk_stride);
+      weighted_rows(bufs.d_p, e_count, 1, m, kh, qk_stride, m, static_cast<int>(dh), false, dqh, qk_stride);
     }
   }
   const CMat xc(bufs.xc, n, d);
