@@ -65,6 +65,15 @@ same_run_n() { cmp -s "$1/checkpoint.bin" "$2/checkpoint.bin" && [ "$(results "$
 same_run_n "$tmp/full1" "$tmp/full3" "full: 1 process vs 3 ranks (1 env each)"
 same_run_n "$tmp/full1" "$tmp/full2" "full: 1 process vs 2 ranks (1 and 2 envs)"
 
+# bf16 products (where this CPU has AVX512-BF16): the same byte-identity across rank counts.
+if grep -qw avx512_bf16 /proc/cpuinfo; then
+  "$hns" "${args[@]}" --precision bf16 --iterations 3 --threads 2 --out "$tmp/bf1" >/dev/null 2>&1 || fail "bf16, 1 process"
+  launch 3 "${args[@]}" --precision bf16 --iterations 3 --threads 1 --out "$tmp/bf3" >/dev/null 2>&1 || fail "bf16, 3 ranks"
+  same_run "$tmp/bf1" "$tmp/bf3" "bf16: 1 process vs 3 ranks"
+  grep -q '"precision": "bf16"' "$tmp/bf3/config.json" && ok || fail "bf16 run's config.json names bf16"
+  cmp -s "$tmp/bf1/checkpoint.bin" "$tmp/one/checkpoint.bin" && fail "bf16 and fp32 runs must differ" || ok
+fi
+
 # Ranks started with different arguments (mpirun's MPMD form): refused before any training.
 out="$("$mpirun" --oversubscribe --bind-to none -np 1 "$hns" "${args[@]}" --iterations 1 --out "$tmp/mixed" : \
   -np 1 "$hns" "${args[@]}" --iterations 1 --set lr=0.001 --out "$tmp/mixed" 2>&1)"
