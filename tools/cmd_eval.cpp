@@ -337,8 +337,9 @@ int run_eval(const EvalOptions& opt) {
       throw physics::ConfigError("--set " + kv + ": " + key + " is set by hns eval itself (see --help)");
     base.set(key, kv.substr(eq + 1));
   }
-  // --set precision=bf16 on a CPU without it: refused now (exit 2), not at the first run.
-  (void)base.resolve_precision();
+  // The precision that runs here (auto resolved, so eval.json records it and a resume on a CPU that would
+  // resolve it otherwise is refused); --set precision=bf16 on a CPU without it: refused now (exit 2).
+  base.precision = std::string(nn::precision_name(base.resolve_precision()));
   if (opt.seeds < 1 || opt.seeds > 100) {
     throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
   }
@@ -374,6 +375,10 @@ int run_eval(const EvalOptions& opt) {
         json old = saved.at("settings");
         const json recorded = old.value("pretrained", json::object());
         old.erase("pretrained");
+        // An evaluation from before the precision key trained every run in fp32.
+        if (old.contains("train_config") && old["train_config"].is_object() &&
+            !old["train_config"].contains("precision"))
+          old["train_config"]["precision"] = "fp32";
         if (old != settings) {
           throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
                                      " differ from these " + settings.dump());

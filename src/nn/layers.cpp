@@ -71,7 +71,8 @@ void dense_forward(const Weights& p, int id, CMat x, const float* w, const float
 // ---- Dense
 // ----------------------------------------------------------------------------------------------------
 
-Dense::Dense(ParamLayout& layout, const std::string& name, int in, int out, Activation act, KernelInit init)
+Dense::Dense(ParamLayout& layout, const std::string& name, int in, int out, Activation act, KernelInit init,
+             bool register_product)
     : in_(in), out_(out), act_(act) {
   switch (init.kind) {
     case Init::kNormal:
@@ -85,7 +86,7 @@ Dense::Dense(ParamLayout& layout, const std::string& name, int in, int out, Acti
       break;
   }
   b_ = layout.add_vector(name + "/b", out, Init::kZeros);
-  id_ = layout.add_product({w_, in, out, {}});
+  if (register_product) id_ = layout.add_product({w_, in, out, {}});
 }
 
 void Dense::forward_linear(const Weights& params, CMat x, Mat z) const {
@@ -357,7 +358,7 @@ SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int w
   HNS_NN_CHECK(heads > 0 && width % heads == 0, "attention width must be a multiple of the head count");
   const float std_in = std::sqrt(0.125f / static_cast<float>(width));
   if (pre_ln) ln_pre_ = LayerNorm(layout, name + "/ln_pre", width);
-  qk_ = Dense(layout, name + "/qk", width, 2 * width, Activation::kNone, {Init::kNormal, std_in});
+  qk_ = Dense(layout, name + "/qk", width, 2 * width, Activation::kNone, {Init::kNormal, std_in}, false);
   // The q/k product reads Wqk with its columns permuted to [q of every head, k of every head] (permute_qk).
   std::vector<int> qk_order(static_cast<size_t>(2 * width));
   for (int c = 0; c < width; ++c) {

@@ -31,8 +31,10 @@ struct KernelInit {
 class Dense {
  public:
   Dense() = default;
-  // Registers "<name>/w" and "<name>/b".
-  Dense(ParamLayout& layout, const std::string& name, int in, int out, Activation act, KernelInit init = {});
+  // Registers "<name>/w" and "<name>/b", and W as a product matrix unless a caller multiplies by W in
+  // another form itself (register_product false: forward and backward must not be called in bf16).
+  Dense(ParamLayout& layout, const std::string& name, int in, int out, Activation act, KernelInit init = {},
+        bool register_product = true);
 
   int in() const { return in_; }
   int out() const { return out_; }
@@ -58,7 +60,7 @@ class Dense {
   Activation act_ = Activation::kNone;
   size_t w_ = 0;  // [in, out]
   size_t b_ = 0;  // [out]
-  int id_ = 0;    // W's product registration
+  int id_ = -1;   // W's product registration (-1: none)
 };
 
 // Layer norm over the features of each row, learned gain (init 1) and bias (init 0), eps 1e-12, optionally

@@ -30,6 +30,7 @@ thread_local Scratch scratch;
 }  // namespace
 
 PackedWeights::PackedWeights(const ParamLayout& layout) : mats_(layout.products()) {
+  HNS_NN_CHECK(bf16::available(), "bf16 weights on a CPU without AVX512-BF16");
   size_t end = 0;
   for (const ProductMatrix& m : mats_) {
     offset_.push_back(end);
@@ -68,6 +69,8 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
     }
     return;
   }
+  const ProductMatrix& m = p.packed->info(id);
+  HNS_NN_CHECK(m.rows == x.cols && m.cols == y.cols && x.rows == y.rows, "bf16 product of another shape");
   bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(x.rows, x.cols));
   bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
   bf16::gemm(a, x.rows, x.cols, p.packed->matrix(id), y.cols, y.data, y.stride, accumulate);
@@ -83,6 +86,8 @@ void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool ac
     return;
   }
   HNS_NN_CHECK(p.packed->has_transposed(), "bf16 backward without transposed weights packed");
+  const ProductMatrix& m = p.packed->info(id);
+  HNS_NN_CHECK(m.rows == dx.cols && m.cols == dz.cols && dz.rows == dx.rows, "bf16 product of another shape");
   bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(dz.rows, dz.cols));
   bf16::convert_a(dz.data, dz.stride, dz.rows, dz.cols, a);
   bf16::gemm(a, dz.rows, dz.cols, p.packed->transposed(id), dx.cols, dx.data, dx.stride, accumulate);

@@ -27,6 +27,11 @@ class PackedWeights {
   // over matrices (each is packed by one thread: the result does not depend on the thread count).
   void pack(const float* values, bool with_transposed);
   bool has_transposed() const { return has_transposed_; }
+  // The registration of matrix id (its shape, for the products' checks).
+  const ProductMatrix& info(int id) const {
+    HNS_NN_CHECK(id >= 0 && size_t(id) < mats_.size(), "no such product matrix");
+    return mats_[size_t(id)];
+  }
   const bf16::bf16_t* matrix(int id) const { return data(offset_[size_t(id)]); }
   const bf16::bf16_t* transposed(int id) const { return data(offset_t_[size_t(id)]); }
   size_t bytes() const { return storage_.size() * sizeof(float); }

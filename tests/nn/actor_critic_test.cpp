@@ -299,6 +299,33 @@ TEST_P(NnNetworkPrecision, MaskedEntitiesChangeNothing) {
   EXPECT_FALSE(same_bits(base.logits.data(), r3.logits.data(), base.logits.size()));
 }
 
+// bf16 products really run: the same parameters and inputs give other logits, values and gradients than
+// fp32, close to them (bf16 keeps 8 significant bits of each operand).
+TEST(NnNetwork, Bf16ProductsChangeTheResultsWithinTheirPrecision) {
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 3;
+  const int seqs = 6, steps = 2, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 700);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  ActorCritic a(cfg, par), b(cfg, par);
+  a.params().init(5);
+  b.params().init(5);
+  b.set_precision(Precision::kBf16);
+  const Result fa = outputs_and_grads(a, norm.view(), data.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
+  const Result fb = outputs_and_grads(b, norm.view(), data.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
+  EXPECT_FALSE(same_bits(fa.logits.data(), fb.logits.data(), fa.logits.size()));
+  EXPECT_FALSE(same_bits(fa.value.data(), fb.value.data(), fa.value.size()));
+  EXPECT_FALSE(same_bits(fa.grads.data(), fb.grads.data(), fa.grads.size()));
+  double err = 0, ref = 0;
+  for (size_t i = 0; i < fa.logits.size(); ++i) {
+    err += double(fa.logits[i] - fb.logits[i]) * (fa.logits[i] - fb.logits[i]);
+    ref += double(fa.logits[i]) * fa.logits[i];
+  }
+  EXPECT_LT(std::sqrt(err), 0.02 * std::sqrt(ref));
+}
+
 // The trainer's path: observations normalised once into a rollout (rows in another order), a minibatch read
 // through a row index with the identity view. Logits, values and gradients equal, to the bit, those of the
 // same rows held contiguously, raw, and normalised inside the forward pass.
