@@ -164,22 +164,21 @@ void register_benchmarks() {
   auto threads = [](benchmark::internal::Benchmark* b) {
     b->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
   };
-  threads(benchmark::RegisterBenchmark("BM_EigenGemm", BM_EigenGemm));
-  for (const char* kind : {"Infer", "Train"})
+  // BM_NnInfer/paper, ... (fp32) or BM_NnInferBf16/paper, ...
+  auto networks = [&](const std::string& suffix, Precision precision) {
     for (const char* preset : {"paper", "small"}) {
-      auto fn = std::string(kind) == "Infer" ? BM_NnInfer : BM_NnTrain;
-      threads(benchmark::RegisterBenchmark((std::string("BM_Nn") + kind + "/" + preset).c_str(), fn, preset,
-                                           Precision::kFp32));
+      threads(benchmark::RegisterBenchmark(("BM_NnInfer" + suffix + "/" + preset).c_str(), BM_NnInfer, preset,
+                                           precision));
+      threads(benchmark::RegisterBenchmark(("BM_NnTrain" + suffix + "/" + preset).c_str(), BM_NnTrain, preset,
+                                           precision));
     }
+  };
+  threads(benchmark::RegisterBenchmark("BM_EigenGemm", BM_EigenGemm));
+  networks("", Precision::kFp32);
   // The bf16 products only where this CPU runs them (tools/perf-gate adds them to its suites there).
   if (!bf16::available()) return;
   threads(benchmark::RegisterBenchmark("BM_Bf16Gemm", BM_Bf16Gemm));
-  for (const char* kind : {"Infer", "Train"})
-    for (const char* preset : {"paper", "small"}) {
-      auto fn = std::string(kind) == "Infer" ? BM_NnInfer : BM_NnTrain;
-      threads(benchmark::RegisterBenchmark((std::string("BM_Nn") + kind + "Bf16/" + preset).c_str(), fn, preset,
-                                           Precision::kBf16));
-    }
+  networks("Bf16", Precision::kBf16);
 }
 
 }  // namespace

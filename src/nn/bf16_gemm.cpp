@@ -111,6 +111,16 @@ HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ALayout lda, const bf1
   }
 }
 
+// The last rows % kRowsPerTile rows in one pass of tiles of that height.
+template <int kRows = kRowsPerTile - 1>
+HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2,
+                               float* c, ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+  if constexpr (kRows > 0) {
+    if (rows == kRows) return tile_cols<kRows>(vecs, a, lda, b, k2, c, ldc, accumulate, last_mask);
+    tail_rows<kRows - 1>(rows, vecs, a, lda, b, k2, c, ldc, accumulate, last_mask);
+  }
+}
+
 HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
                                  float* c, ptrdiff_t ldc, bool accumulate) {
   const int k2 = pairs(k);
@@ -126,25 +136,7 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
     int m = 0;
     for (; m + kRowsPerTile <= rows; m += kRowsPerTile)
       tile_cols<kRowsPerTile>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-    switch (rows - m) {
-      case 5:
-        tile_cols<5>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-        break;
-      case 4:
-        tile_cols<4>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-        break;
-      case 3:
-        tile_cols<3>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-        break;
-      case 2:
-        tile_cols<2>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-        break;
-      case 1:
-        tile_cols<1>(vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
-        break;
-      default:
-        break;
-    }
+    tail_rows(rows - m, vecs, a + m * a_step, lda, panel, k2, cn + m * ldc, ldc, accumulate, last_mask);
   }
 }
 
