@@ -72,9 +72,15 @@ void visit_fields(Config& c, F&& f) {
   f("inject_nan_at", c.inject_nan_at, true);
 }
 
+// A value as error messages show it: at most 80 characters (a long one cut, with its length).
+std::string shown(std::string_view value) {
+  constexpr size_t kMax = 80;
+  if (value.size() <= kMax) return std::string(value);
+  return std::string(value.substr(0, kMax)) + "... (" + std::to_string(value.size()) + " characters)";
+}
+
 std::string field_error(std::string_view key, std::string_view value, std::string_view allowed) {
-  return "config: " + std::string(key) + " = '" + std::string(value) +
-         "' is invalid: " + std::string(allowed);
+  return "config: " + shown(key) + " = '" + shown(value) + "' is invalid: " + std::string(allowed);
 }
 
 void parse_into(std::string_view key, std::string_view text, std::string& out) {
@@ -138,12 +144,21 @@ std::string json_string(const std::string& s) {
 }
 
 // A minimal reader for one flat JSON object: {"key": "string" | number | true | false, ...}.
+// What a value was in the JSON text.
+enum class JsonKind { kString, kNumber, kBoolean };
+struct JsonEntry {
+  std::string key, value;
+  JsonKind kind;
+};
+
+// The flat JSON objects of config files: string, number and boolean values only, each key once; strings with
+// every JSON escape (\uXXXX, surrogate pairs included, decoded to UTF-8); numbers in JSON's grammar.
 class FlatJsonReader {
  public:
   FlatJsonReader(std::string_view text, const std::string& origin) : s_(text), origin_(origin) {}
 
-  std::vector<std::pair<std::string, std::string>> read() {
-    std::vector<std::pair<std::string, std::string>> out;
+  std::vector<JsonEntry> read() {
+    std::vector<JsonEntry> out;
     skip_space();
     expect('{');
     skip_space();
@@ -153,11 +168,20 @@ class FlatJsonReader {
       for (;;) {
         skip_space();
         std::string key = read_string();
+        for (const JsonEntry& e : out)
+          if (e.key == key) fail("key '" + shown(key) + "' appears twice");
         skip_space();
         expect(':');
         skip_space();
-        std::string value = peek() == '"' ? read_string() : read_bare();
-        out.emplace_back(std::move(key), std::move(value));
+        JsonEntry entry{std::move(key), {}, JsonKind::kString};
+        if (peek() == '"') {
+          entry.value = read_string();
+        } else {
+          entry.value = read_bare();
+          entry.kind =
+              entry.value == "true" || entry.value == "false" ? JsonKind::kBoolean : JsonKind::kNumber;
+        }
+        out.push_back(std::move(entry));
         skip_space();
         if (peek() == ',') {
           ++i_;
@@ -187,6 +211,42 @@ class FlatJsonReader {
     if (peek() != c) fail(std::string("expected '") + c + "'");
     ++i_;
   }
+  // The 4 hex digits after "\u" at i_ (i_ on the 'u'), leaving i_ on the last digit.
+  unsigned read_hex4() {
+    unsigned v = 0;
+    for (int d = 0; d < 4; ++d) {
+      ++i_;
+      const char c = peek();
+      v <<= 4;
+      if (c >= '0' && c <= '9') {
+        v |= unsigned(c - '0');
+      } else if (c >= 'a' && c <= 'f') {
+        v |= unsigned(c - 'a' + 10);
+      } else if (c >= 'A' && c <= 'F') {
+        v |= unsigned(c - 'A' + 10);
+      } else {
+        fail("a \\u escape needs 4 hex digits");
+      }
+    }
+    return v;
+  }
+  static void append_utf8(unsigned cp, std::string& out) {
+    if (cp < 0x80) {
+      out += char(cp);
+    } else if (cp < 0x800) {
+      out += char(0xC0 | (cp >> 6));
+      out += char(0x80 | (cp & 0x3F));
+    } else if (cp < 0x10000) {
+      out += char(0xE0 | (cp >> 12));
+      out += char(0x80 | ((cp >> 6) & 0x3F));
+      out += char(0x80 | (cp & 0x3F));
+    } else {
+      out += char(0xF0 | (cp >> 18));
+      out += char(0x80 | ((cp >> 12) & 0x3F));
+      out += char(0x80 | ((cp >> 6) & 0x3F));
+      out += char(0x80 | (cp & 0x3F));
+    }
+  }
   std::string read_string() {
     expect('"');
     std::string out;
@@ -195,14 +255,34 @@ class FlatJsonReader {
         ++i_;
         if (i_ >= s_.size()) break;
         const char e = s_[i_];
-        if (e == 'n')
+        if (e == 'n') {
           out += '\n';
-        else if (e == 't')
+        } else if (e == 't') {
           out += '\t';
-        else if (e == '"' || e == '\\' || e == '/')
+        } else if (e == 'r') {
+          out += '\r';
+        } else if (e == 'b') {
+          out += '\b';
+        } else if (e == 'f') {
+          out += '\f';
+        } else if (e == '"' || e == '\\' || e == '/') {
           out += e;
-        else
+        } else if (e == 'u') {
+          unsigned cp = read_hex4();
+          if (cp >= 0xD800 && cp < 0xDC00) {  // a high surrogate: its low one must follow
+            if (i_ + 2 >= s_.size() || s_[i_ + 1] != '\\' || s_[i_ + 2] != 'u')
+              fail("a \\u escape of a high surrogate needs its low surrogate");
+            i_ += 2;
+            const unsigned lo = read_hex4();
+            if (lo < 0xDC00 || lo >= 0xE000) fail("a \\u escape of a high surrogate needs its low surrogate");
+            cp = 0x10000 + ((cp - 0xD800) << 10) + (lo - 0xDC00);
+          } else if (cp >= 0xDC00 && cp < 0xE000) {
+            fail("a \\u escape of a lone low surrogate");
+          }
+          append_utf8(cp, out);
+        } else {
           fail("unsupported escape in a string");
+        }
       } else {
         out += s_[i_];
       }
@@ -210,6 +290,32 @@ class FlatJsonReader {
     }
     expect('"');
     return out;
+  }
+  // A number in JSON's grammar (-? (0 | [1-9][0-9]*) (. [0-9]+)? ([eE] [+-]? [0-9]+)?), true or false.
+  static bool json_number_or_literal(std::string_view v) {
+    if (v == "true" || v == "false") return true;
+    size_t k = 0;
+    auto digits = [&] {
+      const size_t from = k;
+      while (k < v.size() && v[k] >= '0' && v[k] <= '9') ++k;
+      return k > from;
+    };
+    if (k < v.size() && v[k] == '-') ++k;
+    if (k < v.size() && v[k] == '0') {
+      ++k;
+    } else if (!digits()) {
+      return false;
+    }
+    if (k < v.size() && v[k] == '.') {
+      ++k;
+      if (!digits()) return false;
+    }
+    if (k < v.size() && (v[k] == 'e' || v[k] == 'E')) {
+      ++k;
+      if (k < v.size() && (v[k] == '+' || v[k] == '-')) ++k;
+      if (!digits()) return false;
+    }
+    return k == v.size();
   }
   std::string read_bare() {
     const size_t start = i_;
@@ -221,6 +327,8 @@ class FlatJsonReader {
     const std::string v(s_.substr(start, i_ - start));
     if (v == "{" || v == "[" || v.front() == '{' || v.front() == '[')
       fail("nested objects and arrays are not allowed");
+    if (!json_number_or_literal(v))
+      fail("'" + shown(v) + "' is not a JSON number, true or false (strings need quotes)");
     return v;
   }
 
@@ -248,7 +356,7 @@ void TrainConfig::set(std::string_view key, std::string_view value) {
     visit_fields(*this, [&](const char* name, auto&, bool) {
       names += (names.empty() ? "" : ", ") + std::string(name);
     });
-    throw ConfigError("config: unknown key '" + std::string(key) + "' (known keys: " + names + ")");
+    throw ConfigError("config: unknown key '" + shown(key) + "' (known keys: " + names + ")");
   }
 }
 
@@ -283,11 +391,25 @@ std::string TrainConfig::to_json() const {
 }
 
 void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
-  for (const auto& [key, value] : FlatJsonReader(text, origin).read()) {
+  for (const JsonEntry& e : FlatJsonReader(text, origin).read()) {
     try {
-      set(key, value);
-    } catch (const ConfigError& e) {
-      throw ConfigError(origin + ": " + e.what());
+      // In a file a key's JSON type must be its field's: a string for text, a number for numbers.
+      bool text_field = false, known = false;
+      visit_fields(*this, [&](const char* name, auto& field, bool) {
+        if (e.key != name) return;
+        known = true;
+        text_field = std::is_same_v<std::decay_t<decltype(field)>, std::string>;
+      });
+      if (known && text_field && e.kind != JsonKind::kString)
+        throw ConfigError(field_error(e.key, e.value, "must be a JSON string (in quotes)"));
+      if (known && !text_field && e.kind != JsonKind::kNumber)
+        throw ConfigError(field_error(e.key, e.value,
+                                      e.kind == JsonKind::kString
+                                          ? "must be a JSON number, not a string"
+                                          : "must be a JSON number, not true or false"));
+      set(e.key, e.value);
+    } catch (const ConfigError& err) {
+      throw ConfigError(origin + ": " + err.what());
     }
   }
 }

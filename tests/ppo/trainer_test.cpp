@@ -152,6 +152,42 @@ TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
   EXPECT_EQ(new_run.grad_groups, a.grad_groups);
 }
 
+// The config reader takes what the writer writes (a control character in a path is written as \u0009, which
+// must read back: a run must stay resumable) and refuses what JSON does not allow, naming the problem, with
+// a long value cut short in the message.
+TEST(TrainConfig, ReaderTakesJsonEscapesAndRefusesWhatJsonDoesNot) {
+  TrainConfig a;
+  a.init_from = "/tmp/with\ttab\x01and \"quote\" \\ back";
+  TrainConfig b;
+  b.merge_run_json(a.to_json(), "config.json");
+  EXPECT_EQ(b.init_from, a.init_from);
+  TrainConfig u;
+  u.merge_json(R"({"scene": "\u0071uadrant", "init_from": "caf\u00e9 \ud83d\ude00 \b\f\r"})", "f.json");
+  EXPECT_EQ(u.scene, "quadrant");
+  EXPECT_EQ(u.init_from, "caf\xc3\xa9 \xf0\x9f\x98\x80 \b\f\r");
+  auto refused = [](const std::string& text, const std::string& why) {
+    TrainConfig c;
+    try {
+      c.merge_json(text, "f.json");
+    } catch (const physics::ConfigError& e) {
+      EXPECT_NE(std::string(e.what()).find(why), std::string::npos)
+          << text.substr(0, 100) << ": " << e.what();
+      EXPECT_LT(std::string(e.what()).size(), 600u) << "the message must not echo a huge value";
+      return;
+    }
+    ADD_FAILURE() << "accepted: " << text.substr(0, 100);
+  };
+  refused(R"({"epochs": 2, "epochs": 3})", "epochs");  // duplicate key
+  refused(R"({"scene": quadrant})", "quadrant");       // an unquoted word
+  refused(R"({"epochs": 02})", "02");                  // a leading zero
+  refused(R"({"epochs": "2"})", "epochs");             // a string for an integer
+  refused(R"({"epochs": true})", "epochs");            // a boolean for an integer
+  refused(R"({"lr": 0x1p-10})", "0x1p-10");            // not a JSON number
+  refused(R"({"lr": +1})", "+1");
+  refused(R"({"scene": "\u12"})", "escape");                                          // a broken \u escape
+  refused("{\"epochs\": \"" + std::string(50'000, '7') + "\"}", "50000 characters");  // cut short
+}
+
 // precision: a run made before the key existed ran in fp32; the key is part of a run's identity; auto
 // resolves to what the CPU has, and bf16 on a CPU without it is refused (ConfigError, exit 2 in hns train).
 TEST(TrainConfig, PrecisionKeyResolvesPerCpu) {
