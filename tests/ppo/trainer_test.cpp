@@ -389,7 +389,8 @@ TEST_P(TrainerPrecision, ResumeAfterEveryIterationIsBitIdentical) {
       const IterationMetrics m = straight.iterate();
       metrics.push_back(metrics_but_timings(m));
       boxes_locked += m.num_box_lock;
-      const std::string path = temp_path("resume_" + config.scene + std::to_string(i + 1) + ".bin");
+      const std::string path =
+          temp_path("resume_" + GetParam() + "_" + config.scene + std::to_string(i + 1) + ".bin");
       straight.save(path);
       checkpoints.push_back(path);
       const batch::BatchState& s = straight.sim().state();
@@ -406,7 +407,7 @@ TEST_P(TrainerPrecision, ResumeAfterEveryIterationIsBitIdentical) {
       for (int i = from; i < iterations; ++i) {
         const IterationMetrics m = resumed.iterate();
         EXPECT_EQ(metrics_but_timings(m), metrics[i]) << config.scene << ": resumed after " << from;
-        const std::string path = temp_path("resumed_" + config.scene + ".bin");
+        const std::string path = temp_path("resumed_" + GetParam() + "_" + config.scene + ".bin");
         resumed.save(path);
         EXPECT_TRUE(file_bytes(path) == file_bytes(checkpoints[i]))
             << config.scene << ": checkpoint after iteration " << i + 1 << ", resumed after " << from;
