@@ -120,7 +120,7 @@ struct TrainConfig {
   void set(std::string_view key, std::string_view value);
   // Flat JSON object with every field, one per line, in declaration order.
   std::string to_json() const;
-    // Reads a flat JSON object: each key once, a JSON string for a text field and a JSON number for a number
+  // Reads a flat JSON object: each key once, a JSON string for a text field and a JSON number for a number
   // (every JSON string escape, no quoted numbers, booleans or non-JSON number forms); keys not given keep
   // their current values.
   // `origin` names the source in error messages.
