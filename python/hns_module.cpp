@@ -19,6 +19,7 @@
 #include "batch/host.hpp"
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
+#include "ppo/atomic_file.hpp"
 #include "ppo/obs_arrays.hpp"
 #include "ppo/policy.hpp"
 #include "replay/metrics.hpp"
@@ -746,8 +747,8 @@ std::string read_metrics_json(const py::object& path_arg) {
   if (!std::filesystem::exists(path)) raise(PyExc_FileNotFoundError, path + ": no such file");
   std::string text;
   try {
-    text = replay::read_file_bytes(path);
-  } catch (const replay::TrajectoryError& e) {
+    text = ppo::read_regular_file(path, ppo::kMaxMetricsBytes, "");
+  } catch (const std::exception& e) {
     raise(PyExc_OSError, e.what());
   }
   try {

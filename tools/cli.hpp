@@ -36,11 +36,16 @@ void write_chrome_trace(const std::string& path, const std::vector<batch::TraceE
 // Writes `text` to `path` atomically: a temporary file beside it, then rename. Throws on failure.
 void write_atomically(const std::string& path, const std::string& text);
 
-// Checks, before any work starts, that the file `path` given to `flag` can be written: it is not a folder,
-// its folder exists and takes a new file, and it is none of `inputs` (files the command reads). Throws
-// physics::ConfigError naming the flag and the reason.
+// Checks, before any work starts, that the file `path` given to `flag` can be written: its name is not too
+// long, it is not a folder nor another special file (a device or FIFO would be replaced by the atomic write),
+// its folder exists and takes a new file (tried: PATH.tmp is created and removed), and it is none of `inputs`
+// (files the command reads). Throws physics::ConfigError naming the flag and the reason.
 void check_output_path(const std::string& flag, const std::string& path,
                        const std::vector<std::string>& inputs = {});
+
+// Refuses (physics::ConfigError naming `flag`) a path longer than PATH_MAX or with a name longer than
+// NAME_MAX, which the file system would refuse only once the work is done.
+void check_path_length(const std::string& flag, const std::string& path);
 
 // A seed given to `flag`: a decimal integer in [0, 2^64 - 1], nothing else (no sign, exponent or fraction).
 // Throws physics::ConfigError.

@@ -1,5 +1,8 @@
 #include <nlohmann/json.hpp>
 
+#include <unistd.h>
+#include <climits>
+
 #include <cctype>
 #include <charconv>
 #include <cstdio>
@@ -20,18 +23,45 @@ void check_output_path(const std::string& flag, const std::string& path,
                        const std::vector<std::string>& inputs) {
   auto reject = [&](const std::string& why) { throw physics::ConfigError(flag + " " + path + ": " + why); };
   if (path.empty()) reject("an output file name is required");
+  check_path_length(flag, path);
   std::error_code ec;
   if (fs::is_directory(path, ec)) reject("is a folder, not a file");
   const fs::path parent = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
   if (!fs::is_directory(parent, ec)) reject("its folder " + parent.string() + " does not exist");
-  if (::access(parent.c_str(), W_OK | X_OK) != 0)
-    reject("its folder " + parent.string() + " is not writable");
+  try {
+    ppo::check_replaceable(path, "");
+  } catch (const ppo::FileError& e) {
+    throw physics::ConfigError(flag + " " + e.what());
+  }
   if (fs::exists(path, ec) && ::access(path.c_str(), W_OK) != 0) reject("exists and is not writable");
+  // Whether the file can really be written there (access() says yes for root in /proc, and on a full or
+  // read-only mount the answer comes from the write): PATH.tmp, which the atomic write uses, is created and
+  // removed.
+  try {
+    ::close(ppo::create_temp_file(path + ".tmp"));
+    ::unlink((path + ".tmp").c_str());
+  } catch (const std::runtime_error&) {
+    reject("its folder " + parent.string() + " is not writable");
+  }
   const fs::path out = fs::weakly_canonical(path, ec);
   for (const std::string& in : inputs) {
     std::error_code e2;
     if (!in.empty() && fs::weakly_canonical(in, e2) == out)
       reject("is also an input of this command; choose another file");
+  }
+}
+
+void check_path_length(const std::string& flag, const std::string& path) {
+  if (path.size() >= PATH_MAX) {
+    throw physics::ConfigError(flag + ": the path is too long (" + std::to_string(path.size()) +
+                               " bytes; at most " + std::to_string(PATH_MAX - 1) + ")");
+  }
+  for (const fs::path& part : fs::path(path)) {
+    if (part.native().size() > NAME_MAX) {
+      throw physics::ConfigError(flag + " " + path.substr(0, 60) + "...: a name in the path is too long (" +
+                                 std::to_string(part.native().size()) + " bytes; at most " +
+                                 std::to_string(NAME_MAX) + ")");
+    }
   }
 }
 

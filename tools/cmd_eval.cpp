@@ -370,8 +370,7 @@ int run_eval(const EvalOptions& opt) {
     }
     if (opt.resume) {
       try {
-        std::ifstream in(eval_json);
-        const json saved = json::parse(in);
+        const json saved = json::parse(ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:"));
         json old = saved.at("settings");
         const json recorded = old.value("pretrained", json::object());
         old.erase("pretrained");
@@ -413,6 +412,10 @@ int run_eval(const EvalOptions& opt) {
         for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
       } catch (const json::exception& e) {
         throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
+      } catch (const ppo::FileError& e) {
+        throw physics::ConfigError(e.what());
+      } catch (const std::system_error& e) {
+        throw physics::ConfigError(e.what());
       }
     }
   } else if (opt.resume) {

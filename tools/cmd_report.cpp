@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "ppo/atomic_file.hpp"
 #include "replay/metrics.hpp"
 #include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
@@ -39,30 +40,38 @@ int run_report(const ReportOptions& opt) {
   check_output_path("--html", opt.html,
                     {metrics_path.string(), (dir / "config.json").string(), (dir / "replay.traj").string(),
                      (dir / "checkpoint.bin").string()});
-  std::ifstream in(metrics_path);
-  if (!in) {
+  std::string text;
+  try {
+    text = ppo::read_regular_file(metrics_path.string(), ppo::kMaxMetricsBytes, "");
+  } catch (const ppo::FileError& e) {
+    std::fprintf(stderr, "hns report: %s\n", e.what());
+    return 2;
+  } catch (const std::exception&) {
     std::fprintf(stderr, "hns report: %s cannot be read (is %s a run folder of hns train?)\n",
                  metrics_path.string().c_str(), opt.dir.c_str());
     return 2;
   }
-  std::ostringstream text;
-  text << in.rdbuf();
   MetricsRows metrics;
   try {
-    metrics = read_metrics_jsonl(text.str());
+    metrics = read_metrics_jsonl(text);
   } catch (const MetricsError& e) {
     std::fprintf(stderr, "hns report: %s:%zu %s\n", metrics_path.string().c_str(), e.line, e.what());
     return 2;
   }
   nlohmann::json config = nlohmann::json::object();
-  {
-    std::ifstream cf(dir / "config.json");
-    if (cf) {
-      config = nlohmann::json::parse(cf, nullptr, false);
-      if (config.is_discarded() || !config.is_object()) {
-        std::fprintf(stderr, "hns report: %s is not a JSON object\n", (dir / "config.json").string().c_str());
-        return 2;
-      }
+  std::error_code ec;
+  if (fs::exists(dir / "config.json", ec)) {
+    std::string cf;
+    try {
+      cf = ppo::read_regular_file((dir / "config.json").string(), ppo::kMaxConfigBytes, "");
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "hns report: %s\n", e.what());
+      return 2;
+    }
+    config = nlohmann::json::parse(cf, nullptr, false);
+    if (config.is_discarded() || !config.is_object()) {
+      std::fprintf(stderr, "hns report: %s is not a JSON object\n", (dir / "config.json").string().c_str());
+      return 2;
     }
   }
   std::string replay;

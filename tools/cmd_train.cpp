@@ -26,6 +26,7 @@
 #include "nn/kernels.hpp"
 #include "nn/precision.hpp"
 #include "physics/scene.hpp"
+#include "ppo/atomic_file.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
 #include "replay/recorder.hpp"
@@ -62,12 +63,13 @@ extern "C" void on_interrupt(int) {
   std::signal(SIGUSR1, SIG_DFL);
 }
 
+// A config file's text: a regular file of at most kMaxConfigBytes (a FIFO, a device, a huge file: exit 2).
 std::string read_text(const std::string& path, const char* what) {
-  std::ifstream in(path);
-  if (!in) throw physics::ConfigError(std::string(what) + " " + path + " cannot be read");
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  try {
+    return ppo::read_regular_file(path, ppo::kMaxConfigBytes, what);
+  } catch (const std::exception& e) {
+    throw physics::ConfigError(e.what());
+  }
 }
 
 std::string duration_text(double s) {
@@ -81,23 +83,45 @@ std::string duration_text(double s) {
   return buf;
 }
 
-// Keeps the lines of metrics.jsonl up to `iteration` (a run stopped between writing a line and a checkpoint
-// repeats those iterations on resume). Only whole lines survive: the first line that is not a complete JSON
-// object with an integer "iteration" (one torn by a crash, cut anywhere) ends what is kept.
-void truncate_metrics(const std::string& path, int64_t iteration) {
-  std::ifstream in(path);
-  if (!in) return;
-  std::string kept, line;
-  while (std::getline(in, line)) {
+// Keeps the rows of metrics.jsonl up to `iteration` (a run stopped between writing a row and a checkpoint
+// repeats those iterations on resume). Every whole row of an iteration the checkpoint covers is kept; a line
+// that is not a complete JSON object with an integer "iteration" (torn by a crash, or damaged) is dropped
+// and named on stderr, and the rows after it are kept. Returns the kept text.
+std::string truncate_metrics(const std::string& path, int64_t iteration) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) return "";
+  std::string text;
+  try {
+    text = ppo::read_regular_file(path, ppo::kMaxMetricsBytes, "--resume:");
+  } catch (const std::exception& e) {
+    throw physics::ConfigError(e.what());
+  }
+  std::string kept;
+  std::istringstream in(text);
+  std::string line;
+  std::vector<std::string> dropped;
+  for (int64_t number = 1; std::getline(in, line); ++number) {
     const nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
     if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
-        !row["iteration"].is_number_integer())
-      break;
-    if (row["iteration"].get<int64_t>() > iteration) break;
+        !row["iteration"].is_number_integer()) {
+      if (!line.empty()) dropped.push_back(std::to_string(number));
+      continue;
+    }
+    if (row["iteration"].get<int64_t>() > iteration) continue;
     kept += line + "\n";
   }
-  in.close();
+  if (!dropped.empty()) {
+    std::string lines;
+    for (const std::string& n : dropped) lines += (lines.empty() ? "" : ", ") + n;
+    std::fprintf(
+        stderr,
+        "hns train: warning: %s: line%s %s %s not a whole metrics row (torn by a crash or damaged) and "
+        "%s dropped; every other row up to iteration %lld is kept\n",
+        path.c_str(), dropped.size() > 1 ? "s" : "", lines.c_str(), dropped.size() > 1 ? "are" : "is",
+        dropped.size() > 1 ? "were" : "was", static_cast<long long>(iteration));
+  }
   write_atomically(path, kept);
+  return kept;
 }
 
 // A run folder is marked by this file, which hns train writes into it; hns train only ever removes its own
@@ -105,22 +129,41 @@ void truncate_metrics(const std::string& path, int64_t iteration) {
 constexpr const char* kRunMarker = ".hns-run";
 
 // Whether `dir` may take a run: it does not exist, is empty, carries the marker, or holds a checkpoint.bin
-// with hns's magic (a run of an hns from before the marker). Anything else is refused (ConfigError), so
-// that no file of the user's is ever removed or overwritten, --overwrite included.
+// that loads as an hns checkpoint (a run of an hns from before the marker). Anything else is refused
+// (ConfigError), so that no file of the user's is ever removed or overwritten, --overwrite included.
 void check_run_folder(const std::string& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;
   if (!fs::is_directory(dir, ec)) throw physics::ConfigError("--out " + dir + " exists and is not a folder");
-  if (fs::exists(fs::path(dir) / kRunMarker, ec)) return;
+  if (fs::exists(fs::path(dir) / kRunMarker, ec) ||
+      fs::exists(fs::path(dir) / ppo::FolderLock::kFileName, ec))
+    return;
   fs::directory_iterator it(dir, ec);
   if (ec) throw physics::ConfigError("--out " + dir + " cannot be read: " + ec.message());
   if (it == fs::directory_iterator()) return;  // empty
-  std::ifstream ckpt(fs::path(dir) / "checkpoint.bin", std::ios::binary);
-  char magic[8] = {};
-  if (ckpt.read(magic, 8) && std::string(magic, 8) == "HNSCKPT\n") return;
+  // A run from before the marker: a whole, valid checkpoint (its checksum checked), not 8 bytes of magic.
+  const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
+  if (fs::is_regular_file(ckpt, ec)) {
+    try {
+      (void)ppo::Trainer::checkpoint_config(ckpt);
+      return;
+    } catch (const std::exception&) {
+      // not a checkpoint of hns: the folder is not a run folder
+    }
+  }
   throw physics::ConfigError("--out " + dir + " holds '" + it->path().filename().string() +
                              "' and is not a run folder of hns train: give a new or empty folder (hns never "
                              "removes files it did not write, --overwrite included)");
+}
+
+// The run folder `dir`, locked for this process (ppo::FolderLock): a second hns train into a folder that a
+// running one uses is refused at start (ConfigError, exit 2), naming the running one's process.
+ppo::FolderLock lock_run_folder(const std::string& flag, const std::string& dir) {
+  try {
+    return ppo::FolderLock(dir);
+  } catch (const std::runtime_error& e) {
+    throw physics::ConfigError(flag + " " + e.what());
+  }
 }
 
 // Records `episodes` episodes with the trainer's current policy into `path` (atomically), for the report.
@@ -176,6 +219,7 @@ int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) 
 // writes.
 int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   const bool lead = comm.rank() == 0;
+  ppo::FolderLock lock;  // rank 0 holds the run folder while it runs
   ppo::TrainConfig cfg;
   std::string dir = opt.out;
   const bool resume = !opt.resume.empty();
@@ -186,9 +230,13 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     if (!opt.config_file.empty())
       throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
     dir = opt.resume;
+    if (opt.overwrite)
+      throw physics::ConfigError(
+          "--overwrite and --resume: give one (--resume continues the run in its folder)");
     if (!fs::exists(fs::path(dir) / "checkpoint.bin")) {
       throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
     }
+    if (lead) lock = lock_run_folder("--resume", dir);
     const std::string path = (fs::path(dir) / "config.json").string();
     cfg.merge_run_json(read_text(path, "--resume: run config"), path);
     run_precision = cfg.precision;
@@ -251,7 +299,10 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
   const std::string replay_path = (fs::path(dir) / "replay.traj").string();
   if (!resume && lead) {
+    check_path_length("--out", dir);
     check_run_folder(dir);
+    std::error_code ec;
+    if (fs::is_directory(dir, ec)) lock = lock_run_folder("--out", dir);
     // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
     // (a NaN or a crash in its first iterations) cannot be resumed, so the same command starts it over.
     if (fs::exists(ckpt) && !opt.overwrite) {
@@ -305,6 +356,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     if (ec) throw physics::ConfigError("--out " + dir + " cannot be created: " + ec.message());
     if (::access(dir.c_str(), W_OK | X_OK) != 0)
       throw physics::ConfigError("--out " + dir + " is not writable");
+    // A folder that did not exist at the check above is locked now: of two runs started into one new
+    // folder at once, the second to get here is refused.
+    if (!lock.held()) lock = lock_run_folder("--out", dir);
     if (!opt.config_file.empty() && fs::equivalent(opt.config_file, fs::path(dir) / "config.json", ec)) {
       throw physics::ConfigError("--config " + opt.config_file + " is the run's own config.json in --out " +
                                  dir + ", which the run rewrites: copy it elsewhere first");
@@ -328,7 +382,8 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     }
   }
 
-  if (resume) truncate_metrics(metrics_path, trainer.iteration());
+  std::string earlier_metrics;
+  if (resume) earlier_metrics = truncate_metrics(metrics_path, trainer.iteration());
   write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
 
   const batch::Layout& L = trainer.sim().layout();
@@ -390,7 +445,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   // iterations are read first, silently. A run without one of the teams has no stages to detect.
   replay::StageTracker stages(cfg.hiders == 0 || cfg.seekers == 0 ? "" : cfg.scene);
   {
-    std::ifstream earlier(metrics_path);
+    std::istringstream earlier(earlier_metrics);
     for (std::string line; std::getline(earlier, line);) stages.add(line);
   }
   std::ofstream metrics(metrics_path, std::ios::app);

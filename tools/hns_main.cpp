@@ -30,6 +30,31 @@ int main(int argc, char** argv) {
   hns::tools::add_eval_command(app, commands);
   hns::tools::add_counting_command(app, commands);
 
+  // Every value is checked the same way in every command: an empty value is an error (not "the default"), and
+  // an integer is written in decimal digits with an optional minus sign, nothing else (CLI11 alone also takes
+  // " 2", "+2", "0x2" and "010" as 8).
+  const CLI::Validator non_empty(
+      [](std::string& value) {
+        return value.empty() ? std::string("an empty value is not allowed") : std::string();
+      },
+      "");
+  const CLI::Validator decimal_integer(
+      [](std::string& value) {
+        const std::string digits = !value.empty() && value[0] == '-' ? value.substr(1) : value;
+        bool ok = !digits.empty() && !(digits.size() > 1 && digits[0] == '0');
+        for (char c : digits) ok = ok && c >= '0' && c <= '9';
+        if (!ok) return "'" + value + "' is not a whole number (decimal digits, an optional minus sign)";
+        return std::string();
+      },
+      "");
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
+    for (CLI::Option* opt : sub->get_options([](CLI::Option*) { return true; })) {
+      if (opt->get_type_size() == 0) continue;  // a flag without a value
+      opt->check(non_empty);
+      if (opt->get_type_name().rfind("INT", 0) == 0) opt->check(decimal_integer);
+    }
+  }
+
   // An unknown command gets named (CLI11 would only say that a subcommand is required).
   if (argc > 1 && argv[1][0] != '-') {
     bool known = false;

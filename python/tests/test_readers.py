@@ -124,3 +124,16 @@ def test_record_refusals(checkpoint, tmp_path):
     with pytest.raises(ValueError, match="hiders"):
         hns.record(tmp_path / "x.traj", hiders=99)
     assert not (tmp_path / "x.traj").exists()  # nothing half-written
+
+
+def test_special_files_are_refused_not_read(tmp_path):
+    """A FIFO would block the reader forever and /dev/zero never ends: both are refused at once."""
+    import os
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for read in (hns.read_trajectory, hns.read_metrics, hns.Policy.load):
+        with pytest.raises((OSError, ValueError, RuntimeError), match="not a regular file"):
+            read(str(fifo))
+        with pytest.raises((OSError, ValueError, RuntimeError), match="not a regular file"):
+            read("/dev/zero")

@@ -97,11 +97,7 @@ class Reader {
 
 // The payload of a checkpoint file after checking its magic, version, length and checksum.
 std::string read_payload(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open checkpoint " + path);
-  std::ostringstream ss;
-  ss << in.rdbuf();
-  const std::string file = ss.str();
+  const std::string file = read_regular_file(path, kMaxCheckpointBytes, "checkpoint");
   if (file.size() < kHeaderBytes + 8 || std::memcmp(file.data(), kMagic, sizeof kMagic) != 0) {
     throw std::runtime_error("checkpoint " + path + " is not an hns checkpoint (bad magic or too short)");
   }

@@ -102,12 +102,14 @@ void parse_into(std::string_view key, std::string_view text, int& out) {
 void parse_into(std::string_view key, std::string_view text, uint64_t& out) {
   parse_integer(key, text, out);
 }
+// A number as JSON writes it (decimal, optional minus, fraction and exponent): not hex ("0x1p-10"), not
+// "+1", " 1", "inf" or "nan", which strtod would take.
 void parse_into(std::string_view key, std::string_view text, double& out) {
-  const std::string s(text);
-  char* end = nullptr;
-  errno = 0;
-  const double v = std::strtod(s.c_str(), &end);
-  if (s.empty() || end != s.c_str() + s.size() || errno == ERANGE || !std::isfinite(v)) {
+  double v = 0;
+  const auto [end, ec] =
+      std::from_chars(text.data(), text.data() + text.size(), v, std::chars_format::general);
+  const bool json_start = !text.empty() && (text[0] == '-' || (text[0] >= '0' && text[0] <= '9'));
+  if (!json_start || ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v)) {
     throw ConfigError(field_error(key, text, "must be a finite number"));
   }
   out = v;

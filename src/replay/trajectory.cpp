@@ -16,6 +16,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "ppo/atomic_file.hpp"
+
 namespace hns::replay {
 namespace {
 
@@ -569,15 +571,13 @@ TrajectoryFile decode_trajectory(std::string_view bytes, bool verify_checksums) 
 }
 
 std::string read_file_bytes(const std::string& path) {
-  std::error_code ec;
-  if (std::filesystem::is_directory(path, ec))
-    throw TrajectoryError(path + ": cannot read: it is a directory");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw TrajectoryError(path + ": cannot read: " + std::strerror(errno));
-  std::ostringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw TrajectoryError(path + ": cannot read: " + std::strerror(errno));
-  return std::move(buffer).str();
+  try {
+    return ppo::read_regular_file(path, ppo::kMaxTrajectoryBytes, "");
+  } catch (const ppo::FileError& e) {
+    throw TrajectoryError(e.what());
+  } catch (const std::system_error& e) {
+    throw TrajectoryError(path + ": cannot read: " + e.code().message());
+  }
 }
 
 TrajectoryFile read_trajectory(const std::string& path) {
@@ -591,8 +591,15 @@ TrajectoryFile read_trajectory(const std::string& path) {
 
 TrajectoryWriter::TrajectoryWriter(const std::string& path, const TrajectoryFile& meta, int episodes)
     : path_(path), tmp_(path + ".tmp"), expected_(episodes) {
-  out_ = std::fopen(tmp_.c_str(), "wb");
-  if (out_ == nullptr) throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(errno));
+  ppo::check_replaceable(path_, "");
+  const int fd = ppo::create_temp_file(tmp_);  // never writes through a link planted as PATH.tmp
+  out_ = ::fdopen(fd, "wb");
+  if (out_ == nullptr) {
+    const int err = errno;
+    ::close(fd);
+    std::remove(tmp_.c_str());
+    throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(err));
+  }
   const std::string head = std::string(kTrajectoryMagic) + file_chunk(meta, episodes);
   if (std::fwrite(head.data(), 1, head.size(), out_) != head.size()) {
     throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(errno));

@@ -1,0 +1,161 @@
+#!/usr/bin/env bash
+# Hostile and careless input to the hns command line (README "Reliability"): special files are refused rather
+# than read or replaced, writes do not follow links planted in a run folder, a run folder has one writer, a
+# damaged metrics row does not take the rows after it, and every form of a bad value exits 2 before any work.
+# Usage: reliability_test.sh path/to/hns
+set -u
+hns="$1"
+tmp="$(mktemp -d)"
+pids=()
+trap 'for p in "${pids[@]}"; do kill -9 "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
+passed=0
+failed=0
+
+ok() { passed=$((passed + 1)); }
+fail() {
+  failed=$((failed + 1))
+  echo "FAIL: $*"
+}
+
+# expect_fail CODE PATTERN ARGS...: the command exits CODE within 20 s (a read that blocks on a FIFO would
+# hang) and its output matches PATTERN.
+expect_fail() {
+  local code="$1" pattern="$2"
+  shift 2
+  local out rc
+  out="$(timeout 20 "$hns" "$@" 2>&1 </dev/null)"
+  rc=$?
+  if [ "$rc" -eq "$code" ] && grep -q -E -- "$pattern" <<<"$out"; then
+    ok
+  else
+    fail "hns $* -> exit $rc (want $code, output matching '$pattern'), output: $(head -c 600 <<<"$out")"
+  fi
+}
+
+echo '{"scene": "lockbox", "envs": 4, "epochs": 1, "minibatches": 2}' >"$tmp/train.json"
+train_small() { "$hns" train --config "$tmp/train.json" --threads 1 "$@"; }
+resume() { "$hns" train --threads 1 --resume "$@"; }
+if ! train_small --iterations 2 --out "$tmp/run" >"$tmp/log" 2>&1; then
+  echo "FAIL: setting up a short run"; cat "$tmp/log"
+  exit 1
+fi
+"$hns" play --scene quadrant --episodes 1 --out "$tmp/q.traj" >/dev/null 2>&1 || { echo "FAIL: play"; exit 1; }
+
+# --- Special files are refused (item 5): a FIFO would block the reader forever, /dev/zero never ends.
+mkfifo "$tmp/fifo"
+expect_fail 2 "--config .*fifo.*not a regular file" train --config "$tmp/fifo" --out "$tmp/x1"
+expect_fail 2 "--config /dev/zero.*not a regular file" train --config /dev/zero --out "$tmp/x1"
+expect_fail 2 "fifo.*not a regular file" play --checkpoint "$tmp/fifo" --out "$tmp/x.traj"
+expect_fail 2 "fifo.*not a regular file" replay "$tmp/fifo" --html "$tmp/x.html"
+expect_fail 2 "/dev/zero.*not a regular file" replay /dev/zero --html "$tmp/x.html"
+for f in checkpoint.bin config.json; do
+  cp -r "$tmp/run" "$tmp/special-$f"
+  rm "$tmp/special-$f/$f"
+  mkfifo "$tmp/special-$f/$f"
+  expect_fail 2 "$f.*not a regular file" train --resume "$tmp/special-$f"
+done
+cp -r "$tmp/run" "$tmp/special-metrics"
+rm "$tmp/special-metrics/metrics.jsonl"
+mkfifo "$tmp/special-metrics/metrics.jsonl"
+expect_fail 2 "metrics.jsonl.*not a regular file" report "$tmp/special-metrics" --html "$tmp/x.html"
+# A config file far beyond any config's size is refused by its size, not read whole.
+head -c 20000000 /dev/zero | tr '\0' ' ' >"$tmp/huge.json"
+expect_fail 2 "huge.json.*larger than" train --config "$tmp/huge.json" --out "$tmp/x1"
+[ -e "$tmp/x1" ] && fail "a refused --config created its run folder"
+
+# --- Writers do not replace special files (item 10), and refuse before any work.
+expect_fail 2 "--out .*fifo.*not a regular file" play --scene quadrant --out "$tmp/fifo"
+expect_fail 2 "--json .*fifo.*not a regular file" bench --envs 1 --steps 1 --json "$tmp/fifo"
+expect_fail 2 "--html .*fifo.*not a regular file" replay "$tmp/q.traj" --html "$tmp/fifo"
+expect_fail 2 "--profile .*fifo.*not a regular file" bench --envs 1 --steps 1 --profile "$tmp/fifo"
+[ -p "$tmp/fifo" ] && ok || fail "the FIFO was replaced"
+
+# --- Atomic writes do not follow a link planted as PATH.tmp (item 2).
+cp -r "$tmp/run" "$tmp/linked"
+echo "precious" >"$tmp/precious"
+ln -s "$tmp/precious" "$tmp/linked/config.json.tmp"
+ln -s "$tmp/precious" "$tmp/linked/checkpoint.bin.tmp"
+if resume "$tmp/linked" --iterations 3 >"$tmp/log" 2>&1 &&
+   [ "$(cat "$tmp/precious")" = "precious" ] && [ ! -L "$tmp/linked/config.json" ] &&
+   [ ! -L "$tmp/linked/checkpoint.bin" ] && grep -q '"scene": "lockbox"' "$tmp/linked/config.json"; then
+  ok
+else
+  fail "a link planted as config.json.tmp / checkpoint.bin.tmp was followed: $(cat "$tmp/precious" | head -c 100)"
+  cat "$tmp/log"
+fi
+
+# --- One writer per run folder (item 4): a second hns train into a folder that a running one uses is
+# refused at start, naming the first one's process; the first run is not disturbed.
+"$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/busy" >"$tmp/busy.log" 2>&1 &
+busy=$!
+pids+=("$busy")
+for _ in $(seq 200); do [ -s "$tmp/busy/checkpoint.bin" ] && break; sleep 0.1; done
+expect_fail 2 "busy.*in use by process $busy" train --config "$tmp/train.json" --iterations 1 --out "$tmp/busy" --overwrite
+expect_fail 2 "busy.*in use by process $busy" train --resume "$tmp/busy" --iterations 1
+kill -INT "$busy"
+wait "$busy"
+rc=$?
+if [ "$rc" -eq 130 ] && ! resume "$tmp/busy" --iterations 1 2>&1 | grep -q "in use"; then
+  ok
+else
+  fail "the first run of a busy folder did not end as a normal interrupted run (exit $rc)"
+  cat "$tmp/busy.log"
+fi
+# Two fresh starts a moment apart: one of them is refused.
+"$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/twin" >"$tmp/twin1.log" 2>&1 &
+t1=$!
+pids+=("$t1")
+"$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/twin" >"$tmp/twin2.log" 2>&1 &
+t2=$!
+pids+=("$t2")
+sleep 4
+kill -INT "$t1" "$t2" 2>/dev/null
+wait "$t1"
+r1=$?
+wait "$t2"
+r2=$?
+if { [ "$r1" -eq 2 ] && [ "$r2" -ne 2 ]; } || { [ "$r2" -eq 2 ] && [ "$r1" -ne 2 ]; }; then
+  ok
+else
+  fail "two runs started into one folder: exits $r1 and $r2 (one must be refused with 2)"
+  cat "$tmp/twin1.log" "$tmp/twin2.log"
+fi
+
+# --- A damaged metrics row does not drop the rows after it (item 6).
+train_small --iterations 6 --out "$tmp/rows" >/dev/null 2>&1
+sed -i '2s/.*/{"iteration": 2, "agent_ste/' "$tmp/rows/metrics.jsonl"
+if resume "$tmp/rows" --iterations 7 >"$tmp/log" 2>&1 &&
+   [ "$(grep -c '"iteration"' "$tmp/rows/metrics.jsonl")" -eq 6 ] && grep -q "line 2" "$tmp/log"; then
+  ok
+else
+  fail "resume with a damaged metrics line 2 of 6: $(wc -l <"$tmp/rows/metrics.jsonl") lines kept"
+  cat "$tmp/log"
+fi
+
+# --- Bad values are bad input (item 9): exit 2 naming the flag, before any work.
+expect_fail 2 "--iterations" train --config "$tmp/train.json" --iterations "" --out "$tmp/x2"
+expect_fail 2 "--threads" train --config "$tmp/train.json" --threads "" --out "$tmp/x2"
+expect_fail 2 "--iterations" train --config "$tmp/train.json" --iterations " 2" --out "$tmp/x2"
+expect_fail 2 "--iterations" train --config "$tmp/train.json" --iterations "+2" --out "$tmp/x2"
+expect_fail 2 "--iterations" train --config "$tmp/train.json" --iterations "0x2" --out "$tmp/x2"
+expect_fail 2 "--envs" bench --envs 0x2 --steps 1
+expect_fail 2 "lr" train --config "$tmp/train.json" --set lr=0x1p-10 --out "$tmp/x2"
+expect_fail 2 "envs" train --config "$tmp/train.json" --set envs=lots --envs 4 --out "$tmp/x2"
+expect_fail 2 "--checkpoint" play --checkpoint "" --out "$tmp/x.traj"
+expect_fail 2 "--out" train --config "$tmp/train.json" --iterations 1 --out ""
+expect_fail 2 "--config" train --config "" --iterations 1 --out "$tmp/x2"
+expect_fail 2 "--json" bench --envs 1 --steps 1 --json ""
+expect_fail 2 "--out /proc/.*not writable" play --scene quadrant --out /proc/self/hns-test.traj
+expect_fail 2 "--out .*too long" train --config "$tmp/train.json" --out "$tmp/$(printf 'a%.0s' $(seq 300))"
+expect_fail 2 "--overwrite and --resume" train --resume "$tmp/run" --overwrite
+[ -e "$tmp/x2" ] && fail "a refused command created its run folder"
+
+# --- A folder is a run folder by its marker or a whole valid run, not by 8 bytes (item 11).
+mkdir "$tmp/looks"
+printf 'HNSCKPT\nthis is not a checkpoint' >"$tmp/looks/checkpoint.bin"
+echo "mine" >"$tmp/looks/config.json"
+expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/looks" --overwrite
+[ "$(cat "$tmp/looks/config.json")" = "mine" ] && ok || fail "--overwrite replaced a folder's config.json"
+
+echo "$passed passed, $failed failed"
+[ "$failed" -eq 0 ]
