@@ -13,16 +13,17 @@ extern const char kReportViewerHtml[];
 
 namespace {
 
-// JSON inside <script type="application/json">: "</" would end the script element early.
+// JSON inside <script type="application/json">: every "<" is written as the JSON escape \u003c (it can only
+// occur inside a string), so no text of the data ("</script>", "<!--<script>") can end or change the script
+// element.
 std::string script_safe(const std::string& json) {
   std::string out;
   out.reserve(json.size());
-  for (size_t i = 0; i < json.size(); ++i) {
-    if (json[i] == '<' && i + 1 < json.size() && json[i + 1] == '/') {
-      out += "<\\/";
-      ++i;
+  for (char c : json) {
+    if (c == '<') {
+      out += "\\u003c";
     } else {
-      out += json[i];
+      out += c;
     }
   }
   return out;
@@ -38,7 +39,8 @@ std::string render_report_html(const ReportInputs& in) {
           ? std::string(
                 "<p>No recording yet: <code>hns train</code> records two episodes with every "
                 "checkpoint into the run folder's <code>replay.traj</code>.</p>")
-          : "<iframe title=\"replay\" srcdoc=\"" + html_escape(in.replay_html) + "\"></iframe>";
+          : "<iframe title=\"replay\" sandbox=\"allow-scripts\" srcdoc=\"" + html_escape(in.replay_html) +
+                "\"></iframe>";
   if (replace_all(page, "@HNS_METRICS_JSON@", script_safe(in.metrics_json)) != 1 ||
       replace_all(page, "@HNS_CONFIG_JSON@", script_safe(in.config_json)) != 1 ||
       replace_all(page, "@HNS_STAGES_JSON@", script_safe(in.stages_json)) != 1 ||

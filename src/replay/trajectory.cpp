@@ -16,6 +16,8 @@
 
 #include <nlohmann/json.hpp>
 
+#include "physics/presets.hpp"
+#include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 
 namespace hns::replay {
@@ -346,8 +348,18 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     }
   }
   TrajectoryEpisode ep;
+  // Names the pages show: only hns's own (a page built from a file someone sent must not take markup from
+  // it).
   ep.scene = f.string("scene");
+  if (std::find(physics::kSceneNames.begin(), physics::kSceneNames.end(), ep.scene) ==
+      physics::kSceneNames.end())
+    f.fail("scene", "is not a scene of hns" + f.got(c.header["scene"]));
   ep.layout = f.string("layout");
+  try {
+    (void)physics::parse_layout(ep.layout);
+  } catch (const physics::ConfigError&) {
+    f.fail("layout", "is not a layout of hns" + f.got(c.header["layout"]));
+  }
   ep.seed = f.unsigned_integer("seed");
   ep.env = int(f.integer("env", 0, 1 << 30));
   ep.episode = int(f.integer("episode", 0, std::numeric_limits<int>::max()));

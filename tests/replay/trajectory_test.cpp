@@ -240,6 +240,11 @@ TEST(TrajectoryErrors, EpisodeHeaderFields) {
                    1),
                {"at least one agent"});
   expect_error(edited([](RawChunk& c) { c.header["kind"] = "file"; }, 1), {"\"kind\"", "\"episode\""});
+  // The pages show the scene and layout names: only hns's own are read, never markup from a file.
+  expect_error(edited([](RawChunk& c) { c.header["scene"] = "<img src=x onerror=alert(1)>"; }, 1),
+               {"episode 0", "\"scene\"", "is not a scene of hns"});
+  expect_error(edited([](RawChunk& c) { c.header["layout"] = "<b>quadrant</b>"; }, 2),
+               {"episode 1", "\"layout\"", "is not a layout of hns"});
 }
 
 TEST(TrajectoryErrors, Blocks) {

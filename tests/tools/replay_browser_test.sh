@@ -95,6 +95,66 @@ s="$(status "$tmp/broken.html" "frame=0")"
 [ "$(attr state "$s")" = "error" ] && grep -q "not an hns trajectory" <<<"$(attr error "$s")" && pass ||
   fail "broken page: $s"
 
+# Pages built from files someone sent run no code from them (README "Reliability"). A recording whose episode
+# header names a "scene" that is markup (hns's reader refuses such a file; the page reads the bytes itself, so
+# it must not trust them either): the page renders, and the markup stays text.
+inject='<img src=x onerror="document.body.dataset.pwned=1">'
+python3 - "$tmp/q.traj" "$tmp/evil.traj" "$inject" <<'PY'
+import json, struct, sys
+src, dst, evil = sys.argv[1], sys.argv[2], sys.argv[3]
+data = open(src, "rb").read()
+out, pos = bytearray(data[:8]), 8
+while pos < len(data):
+    (n,) = struct.unpack_from("<I", data, pos)
+    header = json.loads(data[pos + 4 : pos + 4 + n])
+    payload = data[pos + 4 + n : pos + 4 + n + header["payload_bytes"]]
+    if header["kind"] == "episode":
+        header["scene"] = evil
+        header["layout"] = evil
+    text = json.dumps(header).encode()
+    start = len(out) + 4
+    text += b" " * ((-(start + len(text))) % 8)
+    out += struct.pack("<I", len(text)) + text + payload
+    pos += 4 + n + len(payload)
+open(dst, "wb").write(bytes(out))
+PY
+if "$hns" replay "$tmp/evil.traj" --html "$tmp/evil.html" >"$tmp/log" 2>&1; then
+  fail "hns replay accepted a trajectory whose scene is markup"
+elif grep -q "scene.*is not a scene of hns" "$tmp/log"; then
+  pass
+else
+  fail "hns replay refused the markup scene without naming it: $(cat "$tmp/log")"
+fi
+b64="$(base64 -w0 "$tmp/evil.traj")"
+awk -v data="$b64" '{ if (sub(/<script id="trajectory" type="application\/octet-stream">[^<]*<\/script>/, "<script id=\"trajectory\" type=\"application/octet-stream\">" data "</script>")) {} print }' \
+  "$tmp/q.html" >"$tmp/evil.html"
+dom="$(chrome --virtual-time-budget=2000 --dump-dom "file://$tmp/evil.html#frame=0")"
+s="$(grep -o '<output id="hns-status"[^>]*>' <<<"$dom")"
+if [ "$(attr state "$s")" = "ready" ] && ! grep -q "data-pwned" <<<"$dom" && grep -q "&lt;img src=x" <<<"$dom"; then
+  pass
+else
+  fail "a markup scene in a replay page ran or vanished: ${s:-<none>}; pwned: $(grep -c data-pwned <<<"$dom")"
+fi
+# The report page: a config.json holding "<!--<script>" and "</script>" with markup renders, and runs nothing.
+mkdir -p "$tmp/evil-run"
+printf '%s\n' '{"iteration": 1, "agent_steps": 100, "hider_reward": 0, "seeker_reward": 0}' >"$tmp/evil-run/metrics.jsonl"
+printf '{"scene": "quadrant", "note": "<!--<script>", "other": "</script>%s"}\n' "${inject//\"/\\\"}" \
+  >"$tmp/evil-run/config.json"
+cp "$tmp/q.traj" "$tmp/evil-run/replay.traj"
+if "$hns" report "$tmp/evil-run" --html "$tmp/evil-report.html" >"$tmp/log" 2>&1; then
+  dom="$(chrome --virtual-time-budget=2000 --dump-dom "file://$tmp/evil-report.html")"
+  s="$(grep -o '<output id="hns-status"[^>]*>' <<<"$dom")"
+  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr replay "$s")" = "1" ] && ! grep -q "data-pwned" <<<"$dom" &&
+     grep -q 'sandbox="allow-scripts"' "$tmp/evil-report.html"; then
+    pass
+  else
+    fail "report page with markup in config.json: ${s:-<none>}; pwned: $(grep -c data-pwned <<<"$dom")"
+  fi
+else
+  cat "$tmp/log"
+  fail "could not report the run with markup in its config"
+fi
+
 # Responsiveness: every frame of the 240-step full episode drawn once (reported, not judged: timing is noisy).
 s="$(status "$tmp/f.html" "bench=1&frame=0")"
 if [ -n "$(attr draw-ms-mean "$s")" ]; then

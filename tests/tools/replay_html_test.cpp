@@ -1,5 +1,6 @@
 // The replay page: base64 encoding, and a page that embeds the trajectory and reaches for nothing outside.
 #include "replay_html.hpp"
+#include "report_html.hpp"
 
 #include <gtest/gtest.h>
 
@@ -55,6 +56,21 @@ TEST(ReplayHtml, PageEmbedsTheTrajectoryAndNeedsNoNetwork) {
   for (const char* remote : {"http://", "https://", "<script src", "<link", "@import", "url("}) {
     EXPECT_EQ(page.find(remote), std::string::npos) << remote;
   }
+}
+
+TEST(ReportHtml, DataCannotEndOrOpenAScriptElementAndTheReplayIsSandboxed) {
+  ReportInputs in;
+  in.title = "run";
+  in.metrics_json = "[{\"iteration\": 1, \"note\": \"</script><script>alert(1)</script>\"}]";
+  in.config_json = "{\"scene\": \"<!--<script>\"}";
+  in.stages_json = "{}";
+  in.replay_html = "<html><script>/* replay */</script></html>";
+  const std::string page = render_report_html(in);
+  // No "<" of the data survives as markup: it is the JSON escape \u003c, which JSON.parse reads back.
+  EXPECT_EQ(page.find("<!--<script>"), std::string::npos);
+  EXPECT_EQ(page.find("alert(1)</script>"), std::string::npos);
+  EXPECT_NE(page.find("\\u003c!--\\u003cscript>"), std::string::npos);
+  EXPECT_NE(page.find("<iframe title=\"replay\" sandbox=\"allow-scripts\" srcdoc="), std::string::npos);
 }
 
 }  // namespace
