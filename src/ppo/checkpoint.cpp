@@ -3,6 +3,8 @@
 // (little-endian, as the machines hns runs on). The payload holds the resolved config (JSON text), the
 // counters, each env's next episode, the flat parameter buffer, Adam's moments and step, and both
 // normalisers' state: everything the next iteration reads, so a resumed run is bit-identical.
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <fstream>
@@ -310,7 +312,62 @@ Trainer::CheckpointState Trainer::read_checkpoint(
     st.rnd_steps = r.get<int64_t>();
   }
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
+  check_values(st, path);
   return st;
+}
+
+namespace {
+// The first index of `p[0, n)` that is not finite, or that is negative where `non_negative`; -1 if none.
+template <class T>
+int64_t first_bad(const T* p, size_t n, bool non_negative) {
+  for (size_t i = 0; i < n; ++i) {
+    if (!std::isfinite(double(p[i])) || (non_negative && p[i] < 0)) return int64_t(i);
+  }
+  return -1;
+}
+}  // namespace
+
+// Values a checksum cannot vouch for (a file written by a broken tool, or edited and re-summed): what no
+// training run can produce is refused before any of it is applied, as a config's values are.
+void Trainer::check_values(const CheckpointState& st, const std::string& path) {
+  const auto refuse = [&](const std::string& what) {
+    throw std::runtime_error("checkpoint " + path + " holds an impossible state: " + what);
+  };
+  const auto counter = [&](const char* name, int64_t v) {
+    if (v < 0) refuse(std::string(name) + " is " + std::to_string(v) + " (a count is at least 0)");
+  };
+  counter("the iteration", st.iteration);
+  counter("the agent-step count", st.agent_steps);
+  counter("the env-step count", st.env_steps);
+  counter("Adam's step count", st.adam_steps);
+  counter("the RND optimiser's step count", st.rnd_steps);
+  for (size_t e = 0; e < st.episodes.size(); ++e) {
+    if (st.episodes[e] < 0) refuse("env " + std::to_string(e) + "'s episode count is negative");
+  }
+  const auto floats = [&](const char* name, const auto& values, bool non_negative) {
+    const int64_t i = first_bad(values.data(), values.size(), non_negative);
+    if (i >= 0) {
+      refuse(std::string(name) + " has " + std::to_string(double(values[size_t(i)])) + " at index " +
+             std::to_string(i) +
+             (non_negative ? " (values must be finite and at least 0)" : " (values must be finite)"));
+    }
+  };
+  floats("the parameter buffer", st.values, false);
+  floats("Adam's first moment", st.m, false);
+  floats("Adam's second moment", st.v, true);
+  floats("the RND predictor", st.rnd_values, false);
+  floats("the RND predictor's first moment", st.rnd_m, false);
+  floats("the RND predictor's second moment", st.rnd_v, true);
+  for (int k = 0; k < nn::kNumObsKeys; ++k) {
+    floats("an observation normaliser's mean", st.obs_mean[k], false);
+    floats("an observation normaliser's mean square", st.obs_sq[k], true);
+  }
+  const std::array<double, 3> value_norm = {st.value_norm.biased_mean, st.value_norm.biased_sq,
+                                            st.value_norm.debias};
+  floats("the value normaliser", value_norm, false);
+  floats("the observation normalisers' debias terms", st.obs_debias, true);
+  if (st.value_norm.biased_sq < 0 || st.value_norm.debias < 0)
+    refuse("the value normaliser has a negative square or weight");
 }
 
 void Trainer::load(const std::string& path, LoadMode mode) {

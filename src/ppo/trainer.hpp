@@ -158,6 +158,9 @@ class Trainer {
   // its arrays are read.
   CheckpointState read_checkpoint(const std::string& path,
                                   const std::function<std::string(const TrainConfig&)>& mismatch) const;
+  // Refuses (std::runtime_error) values no run can produce: non-finite weights, moments or normalisers,
+  // negative counts or second moments.
+  static void check_values(const CheckpointState& st, const std::string& path);
   std::string checkpoint_payload() const;
   void rollout(IterationMetrics& m);
   void compute_targets(IterationMetrics& m);

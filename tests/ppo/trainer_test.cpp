@@ -1,6 +1,7 @@
 // The PPO trainer: config validation, checkpoints (round trip, bit-identical resume, refusal of corrupt or
 // foreign files), determinism across thread counts, the NaN stop, and the value-target normaliser.
 #include "ppo/trainer.hpp"
+#include "ppo/atomic_file.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +10,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iterator>
+#include <limits>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -472,6 +475,29 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
   TrainConfig paper = cfg;
   paper.model = "paper";
   expect_refused(bytes, paper, "model");
+  // Impossible values under a valid checksum (the payload edited and re-summed) are refused too.
+  constexpr size_t kHeader = 8 + 4 + 8;
+  auto resummed = [&](const std::function<void(std::string&, size_t)>& edit) {
+    std::string payload = bytes.substr(kHeader, bytes.size() - kHeader - 8);
+    uint64_t config_bytes = 0;
+    std::memcpy(&config_bytes, payload.data(), 8);
+    edit(payload, 8 + config_bytes);  // the offset of the iteration counter
+    const uint64_t sum = fnv1a64(payload.data(), payload.size());
+    return bytes.substr(0, kHeader) + payload + std::string(reinterpret_cast<const char*>(&sum), 8);
+  };
+  expect_refused(resummed([](std::string& p, size_t at) {
+                   const int64_t minus = -3;
+                   std::memcpy(p.data() + at, &minus, 8);
+                 }),
+                 cfg, "the iteration is -3");
+  expect_refused(resummed([&](std::string& p, size_t at) {
+                   // iteration, agent and env steps, need_restart, the episode list (length + envs int32s),
+                   // then the parameter buffer's length and its first value.
+                   const size_t first_param = at + 3 * 8 + 1 + 8 + 4 * size_t(cfg.envs) + 8;
+                   const float nan = std::numeric_limits<float>::quiet_NaN();
+                   std::memcpy(p.data() + first_param + 4 * 5, &nan, 4);
+                 }),
+                 cfg, "the parameter buffer has nan at index 5");
   std::remove(path.c_str());
 }
 
