@@ -9,7 +9,7 @@ def test_read_trajectory(run_cli, tmp_path):
     path = tmp_path / "full.traj"
     run_cli("play", "--scene", "full", "--random", "--episodes", 2, "--envs", 2, "--seed", 3, "--out", path)
     data = hns.read_trajectory(path)  # str or os.PathLike
-    assert data["version"] == 2 and data["created_by"] == "hns play" and data["policy"] == "random"
+    assert data["version"] == 3 and data["created_by"] == "hns play" and data["policy"] == "random"
     assert len(data["episodes"]) == 2
     for ep in data["episodes"]:
         F, A, B, R = ep["frames"], ep["num_hiders"] + ep["num_seekers"], ep["num_boxes"], ep["num_ramps"]

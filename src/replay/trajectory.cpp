@@ -88,9 +88,17 @@ uint64_t align8(uint64_t x) {
   return (x + 7) & ~uint64_t(7);
 }
 
+// The checksum of a chunk's header (version 3): FNV-1a 64 of the header's compact JSON (keys sorted, as
+// nlohmann::json writes them) without the "header_fnv1a64" key itself.
+std::string header_checksum(json header) {
+  header.erase("header_fnv1a64");
+  return trajectory_checksum(header.dump());
+}
+
 // A chunk: u32 length, JSON padded with spaces so the payload starts 8-byte aligned, payload.
 std::string make_chunk(json header, const std::string& payload) {
   header["payload_bytes"] = payload.size();
+  header["header_fnv1a64"] = header_checksum(header);
   std::string text = header.dump();
   text.append(align8(4 + text.size()) - 4 - text.size(), ' ');
   std::string out(4, '\0');
@@ -281,7 +289,7 @@ struct Chunk {
 };
 
 // Reads the chunk at `pos`; `what` names it in errors ("file header", "episode 3").
-Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what) {
+Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what, bool verify_checksums) {
   const std::string where = "byte " + std::to_string(pos) + " (" + what + ")";
   if (bytes.size() - pos < 4) {
     throw TrajectoryError(where + ": the file ends before the header length (truncated file?)");
@@ -300,6 +308,17 @@ Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what)
     throw TrajectoryError(where + ": header is not valid JSON: " + e.what());
   }
   if (!c.header.is_object()) throw TrajectoryError(where + ": header is not a JSON object");
+  // Version 3 headers carry their own checksum (required there, checked in decode_trajectory's version
+  // logic); one that is present is always checked, whatever version the (maybe damaged) file claims.
+  if (verify_checksums && c.header.contains("header_fnv1a64")) {
+    const json& stored = c.header["header_fnv1a64"];
+    const std::string actual = header_checksum(c.header);
+    if (!stored.is_string() || stored.get<std::string>() != actual) {
+      throw TrajectoryError(
+          where + ": \"header_fnv1a64\": the header's checksum is " + actual + ", the header says " +
+          (stored.is_string() ? stored.get<std::string>() : stored.dump()) + " (a corrupt file)");
+    }
+  }
   c.payload_pos = pos + 4 + length;
   if (c.payload_pos % 8 != 0) {
     throw TrajectoryError(where + ": header length " + std::to_string(length) +
@@ -307,6 +326,8 @@ Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what)
   }
   const Fields f(c.header, where);
   c.payload_bytes = f.unsigned_integer("payload_bytes");
+  if (c.payload_bytes % 8 != 0)
+    f.fail("payload_bytes", "not a multiple of 8 (payloads are zero-padded to 8 bytes)");
   if (c.payload_bytes > bytes.size() - c.payload_pos) {
     throw TrajectoryError(where + ": payload of " + std::to_string(c.payload_bytes) +
                           " bytes runs past the end of the file (" + std::to_string(bytes.size()) +
@@ -437,8 +458,8 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     }
     const uint64_t offset = bf.unsigned_integer("offset");
     const uint64_t size = uint64_t(elements(shape)) * sizeof(T);
-    if (offset % sizeof(T) != 0)
-      bf.fail("offset", "not a multiple of the element size" + bf.got(bf.at("offset")));
+    if (offset % 8 != 0)
+      bf.fail("offset", "not a multiple of 8 (blocks start 8-byte aligned)" + bf.got(bf.at("offset")));
     if (offset > payload.size() || size > payload.size() - offset) {
       throw TrajectoryError(bwhere + ": bytes [" + std::to_string(offset) + ", " +
                             std::to_string(offset + size) + ") run past the payload (" +
@@ -542,23 +563,28 @@ TrajectoryFile decode_trajectory(std::string_view bytes, bool verify_checksums) 
   }
   uint64_t pos = kTrajectoryMagic.size();
   TrajectoryFile file;
-  const Chunk head = read_chunk(bytes, pos, "file header");
+  const Chunk head = read_chunk(bytes, pos, "file header", verify_checksums);
   const Fields f(head.header, "byte 8 (file header)");
   if (!head.header.contains("format") || head.header["format"] != "hns-trajectory") {
     f.fail("format", "expected \"hns-trajectory\"" +
                          (head.header.contains("format") ? f.got(head.header["format"]) : ""));
   }
   const int64_t version = f.integer("version", 0, 1 << 30);
-  if (version != kTrajectoryVersion && version != 1) {
-    f.fail("version", "this hns reads versions 1 and " + std::to_string(kTrajectoryVersion) + ", got " +
+  if (version < 1 || version > kTrajectoryVersion) {
+    f.fail("version", "this hns reads versions 1 to " + std::to_string(kTrajectoryVersion) + ", got " +
                           std::to_string(version) +
                           (version > kTrajectoryVersion ? " (a newer hns wrote it)" : ""));
   }
+  if (version >= 3 && !head.header.contains("header_fnv1a64")) f.fail("header_fnv1a64", "missing");
   file.version = int(version);
   if (version == 1) {
     file.warnings.push_back(
         "a version 1 file: its episodes carry no checksum, so corruption inside their "
         "payload can only be caught by the range checks");
+  } else if (version == 2) {
+    file.warnings.push_back(
+        "a version 2 file: its headers carry no checksum, so corruption inside them can only be caught by "
+        "the range checks");
   }
   const int64_t episodes = f.integer("episodes", 0, 1 << 24);
   file.created_by = f.string("created_by");
@@ -570,7 +596,9 @@ TrajectoryFile decode_trajectory(std::string_view bytes, bool verify_checksums) 
     }
     const std::string what = "episode " + std::to_string(e);
     const uint64_t start = pos;
-    const Chunk c = read_chunk(bytes, pos, what);
+    const Chunk c = read_chunk(bytes, pos, what, verify_checksums);
+    if (version >= 3 && !c.header.contains("header_fnv1a64"))
+      throw TrajectoryError("byte " + std::to_string(start) + " (" + what + "): \"header_fnv1a64\": missing");
     file.episodes.push_back(read_episode(bytes, c, "byte " + std::to_string(start) + " (" + what + ")",
                                          int(version), verify_checksums));
   }

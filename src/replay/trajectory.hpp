@@ -18,8 +18,9 @@
 
 namespace hns::replay {
 
-inline constexpr int kTrajectoryVersion =
-    2;  // 2: episodes carry a checksum of their payload (1 is still read)
+// 2: episodes carry a checksum of their payload; 3: every header carries a checksum of itself too (1 and 2
+// are still read).
+inline constexpr int kTrajectoryVersion = 3;
 // Bounds of the physically meaningful values a reader accepts (the simulator resets a world whose bodies
 // leave the first two, SPEC-wide).
 inline constexpr double kTrajectoryMaxXY = 200.0;    // m, |x| and |y| of every body
@@ -97,7 +98,8 @@ struct TrajectoryEpisode {
   bool operator==(const TrajectoryEpisode&) const = default;
 };
 
-// FNV-1a 64 of an episode's payload as 16 hex digits: the "payload_fnv1a64" of version 2 episode headers.
+// FNV-1a 64 of bytes as 16 hex digits: the "payload_fnv1a64" of episode headers (version 2 on) and, over a
+// header's compact JSON without the key, the "header_fnv1a64" of every header (version 3).
 std::string trajectory_checksum(std::string_view payload);
 
 struct TrajectoryFile {

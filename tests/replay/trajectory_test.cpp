@@ -94,7 +94,7 @@ std::vector<RawChunk> split(const std::string& bytes) {
   return chunks;
 }
 // Re-assembles chunks with correct padding (payload_bytes is kept as the header says) and, for an edited
-// payload, a matching checksum (so that a test reaches the check it aims at).
+// header or payload, matching checksums (so that a test reaches the check it aims at).
 // `edit_text(index, text)`, if given, may rewrite a header's JSON text (to write what json cannot hold).
 std::string join(const std::vector<RawChunk>& chunks,
                  const std::function<void(size_t, std::string&)>& edit_text = nullptr) {
@@ -102,6 +102,12 @@ std::string join(const std::vector<RawChunk>& chunks,
   for (size_t index = 0; index < chunks.size(); ++index) {
     RawChunk c = chunks[index];
     if (c.header.contains("payload_fnv1a64")) c.header["payload_fnv1a64"] = trajectory_checksum(c.payload);
+    if (c.header.contains(
+            "header_fnv1a64")) {  // over the compact JSON without the key (docs/trajectory-format.md)
+      json rest = c.header;
+      rest.erase("header_fnv1a64");
+      c.header["header_fnv1a64"] = trajectory_checksum(rest.dump());
+    }
     std::string text = c.header.dump();
     if (edit_text) edit_text(index, text);
     while ((4 + text.size()) % 8 != 0) text += ' ';
@@ -208,8 +214,8 @@ TEST(Trajectory, UnreadableFileNamesThePath) {
 TEST(TrajectoryErrors, MagicAndFileHeader) {
   expect_error("", {"byte 0", "not an hns trajectory"});
   expect_error("GIF89a..........", {"byte 0", "magic"});
-  expect_error(edited([](RawChunk& c) { c.header["version"] = 3; }, 0),
-               {"file header", "\"version\"", "reads versions 1 and 2", "newer"});
+  expect_error(edited([](RawChunk& c) { c.header["version"] = 4; }, 0),
+               {"file header", "\"version\"", "reads versions 1 to 3", "newer"});
   expect_error(edited([](RawChunk& c) { c.header["format"] = "other"; }, 0), {"file header", "\"format\""});
   expect_error(edited([](RawChunk& c) { c.header["episodes"] = 4; }, 0),
                {"ends after 3 of 4 episodes", "truncated"});
@@ -247,6 +253,50 @@ TEST(TrajectoryErrors, EpisodeHeaderFields) {
                {"episode 1", "\"layout\"", "is not a layout of hns"});
 }
 
+// Every single-bit flip in a header (its length and its JSON text) is caught or changes nothing that is
+// read: headers carry their own checksum (version 3), so a flip that keeps the JSON valid is caught by it.
+TEST(TrajectoryErrors, EveryHeaderBitFlipIsCaught) {
+  const std::string bytes = encode_trajectory(make_file());
+  const std::string clean = encode_trajectory(decode_trajectory(bytes));
+  // The file header and the first episode's header: [8, end of that JSON text).
+  uint32_t file_len = 0, ep_len = 0;
+  std::memcpy(&file_len, bytes.data() + 8, 4);
+  const size_t ep_at = 8 + 4 + file_len;
+  std::memcpy(&ep_len, bytes.data() + ep_at, 4);
+  int caught = 0, silent = 0;
+  for (const auto& [begin, end] : {std::pair<size_t, size_t>{8, ep_at}, {ep_at, ep_at + 4 + ep_len}}) {
+    for (size_t i = begin; i < end; ++i) {
+      for (int bit = 0; bit < 8; ++bit) {
+        std::string flipped = bytes;
+        flipped[i] = char(flipped[i] ^ (1 << bit));
+        try {
+          const TrajectoryFile f = decode_trajectory(flipped);
+          if (encode_trajectory(f) != clean) {
+            ++silent;
+            ADD_FAILURE() << "byte " << i << " bit " << bit << " changed what is read without an error";
+          }
+        } catch (const TrajectoryError&) {
+          ++caught;
+        }
+      }
+    }
+  }
+  EXPECT_EQ(silent, 0);
+  EXPECT_GT(caught, 8 * 1000);
+  // A version 3 header without its checksum is refused, and so is one whose checksum is not a string.
+  expect_error(edited([](RawChunk& c) { c.header.erase("header_fnv1a64"); }, 1),
+               {"episode 0", "\"header_fnv1a64\": missing"});
+  expect_error(edited([](RawChunk& c) { c.header.erase("header_fnv1a64"); }, 0),
+               {"\"header_fnv1a64\": missing"});
+  std::vector<RawChunk> chunks = split(bytes);
+  chunks[1].header["seed"] = 12345;  // re-summed by join ...
+  std::string resummed = join(chunks);
+  const size_t at = resummed.find("\"seed\":12345");
+  ASSERT_NE(at, std::string::npos);
+  resummed.replace(at, 12, "\"seed\":12346");  // ... then changed: caught
+  expect_error(resummed, {"episode 0", "\"header_fnv1a64\"", "a corrupt file"});
+}
+
 TEST(TrajectoryErrors, Blocks) {
   expect_error(edited([](RawChunk& c) { block(c, "agent_pose")["dtype"] = "u8"; }, 1),
                {"episode 0", "block \"agent_pose\"", "\"dtype\"", "f32"});
@@ -268,7 +318,7 @@ TEST(TrajectoryErrors, Blocks) {
   expect_error(
       edited([](RawChunk& c) { block(c, "reward")["offset"] = block(c, "reward")["offset"].get<int>() + 2; },
              1),
-      {"block \"reward\"", "\"offset\"", "element size"});
+      {"block \"reward\"", "\"offset\"", "not a multiple of 8"});
   // Unknown blocks are ignored (readers of later minor additions).
   const std::string extra = edited(
       [](RawChunk& c) {
