@@ -14,6 +14,7 @@
 #include <vector>
 
 #include "cli.hpp"
+#include "ppo/atomic_file.hpp"
 #include "ppo/counting.hpp"
 #include "ppo/eval.hpp"
 #include "ppo/trainer.hpp"
@@ -26,6 +27,7 @@ using nlohmann::json;
 
 struct CountingOptions {
   std::string out;
+  bool overwrite = false;
   std::vector<std::string> pretrained;
   int seeds = 3;
   std::string model = "small";
@@ -82,6 +84,19 @@ int run_counting(const CountingOptions& opt) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
     throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
+  check_path_length("--out", opt.out);
+  // Earlier results are replaced only when asked.
+  for (const char* name : {"counting.json", "counting.md"}) {
+    if (fs::exists(fs::symlink_status(dir / name, ec)) && !opt.overwrite) {
+      throw physics::ConfigError("--out " + opt.out + " holds " + name +
+                                 " (an earlier probe): --overwrite replaces it, or give another folder");
+    }
+    try {
+      ppo::check_replaceable((dir / name).string(), "--out:");
+    } catch (const ppo::FileError& e) {
+      throw physics::ConfigError(e.what());
+    }
+  }
 
   ppo::TrainConfig base;
   base.scene = "object-counting";
@@ -187,6 +202,8 @@ void add_counting_command(CLI::App& app, std::vector<Command>& commands) {
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();
   cmd->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
+  cmd->add_flag("--overwrite", opt->overwrite,
+                "Replace counting.json and counting.md of an earlier probe in --out");
   commands.push_back({cmd, [opt] { return run_counting(*opt); }});
 }
 

@@ -362,6 +362,22 @@ int run_eval(const EvalOptions& opt) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
     throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
+  check_path_length("--out", opt.out);
+  if (opt.resume && opt.overwrite)
+    throw physics::ConfigError(
+        "--resume and --overwrite: give one (--resume continues the evaluation in --out)");
+  // eval.md and eval.html without eval.json are not an evaluation to resume, and not replaced unasked either.
+  for (const char* name : {"eval.md", "eval.html"}) {
+    if (!fs::exists(eval_json, ec) && fs::exists(fs::symlink_status(dir / name, ec)) && !opt.overwrite) {
+      throw physics::ConfigError("--out " + opt.out + " holds " + name +
+                                 " but no eval.json: --overwrite replaces it, or give another folder");
+    }
+    try {
+      ppo::check_replaceable((dir / name).string(), "--out:");
+    } catch (const ppo::FileError& e) {
+      throw physics::ConfigError(e.what());
+    }
+  }
   if (fs::exists(eval_json, ec)) {
     if (!opt.resume && !opt.overwrite) {
       throw physics::ConfigError(

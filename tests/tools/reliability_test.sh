@@ -157,5 +157,15 @@ echo "mine" >"$tmp/looks/config.json"
 expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/looks" --overwrite
 [ "$(cat "$tmp/looks/config.json")" = "mine" ] && ok || fail "--overwrite replaced a folder's config.json"
 
+# hns counting and hns eval replace earlier results only when asked.
+mkdir "$tmp/probe" "$tmp/evals"
+echo "mine" >"$tmp/probe/counting.md"
+echo "mine" >"$tmp/evals/eval.md"
+expect_fail 2 "holds counting.md.*--overwrite" counting --out "$tmp/probe" --seeds 1
+expect_fail 2 "holds eval.md but no eval.json" eval --out "$tmp/evals" --tasks lockbox --seeds 1
+expect_fail 2 "--resume and --overwrite" eval --out "$tmp/evals" --tasks lockbox --resume --overwrite
+[ "$(cat "$tmp/probe/counting.md")" = "mine" ] && [ "$(cat "$tmp/evals/eval.md")" = "mine" ] && ok ||
+  fail "counting or eval replaced a file it was not asked to"
+
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
