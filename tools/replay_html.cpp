@@ -40,13 +40,34 @@ std::string html_escape(const std::string& text) {
   return out;
 }
 
-int replace_all(std::string& text, std::string_view slot, const std::string& value) {
-  int count = 0;
-  for (size_t pos = text.find(slot); pos != std::string::npos; pos = text.find(slot, pos + value.size())) {
-    text.replace(pos, slot.size(), value);
-    ++count;
+std::string fill_template(std::string_view page, const std::vector<Slot>& slots) {
+  std::string out;
+  out.reserve(page.size());
+  std::vector<int> seen(slots.size(), 0);
+  size_t pos = 0;
+  while (pos < page.size()) {
+    // The nearest slot from here (slot names do not overlap one another).
+    size_t best = std::string_view::npos, which = 0;
+    for (size_t k = 0; k < slots.size(); ++k) {
+      const size_t at = page.find(slots[k].name, pos);
+      if (at < best) best = at, which = k;
+    }
+    if (best == std::string_view::npos) {
+      out.append(page.substr(pos));
+      break;
+    }
+    out.append(page.substr(pos, best - pos));
+    out += slots[which].value;
+    ++seen[which];
+    pos = best + slots[which].name.size();
   }
-  return count;
+  for (size_t k = 0; k < slots.size(); ++k) {
+    if (slots[k].exactly_once && seen[k] != 1) {
+      throw std::logic_error("page template must hold " + std::string(slots[k].name) +
+                             " exactly once, holds it " + std::to_string(seen[k]) + " times");
+    }
+  }
+  return out;
 }
 
 std::string base64_encode(std::string_view bytes) {
@@ -74,13 +95,8 @@ std::string base64_encode(std::string_view bytes) {
 }
 
 std::string render_replay_html(std::string_view trajectory_bytes, const std::string& title) {
-  std::string page(kReplayViewerHtml);
-  // The data slot goes first: base64 cannot contain the title slot, a title could contain the data slot.
-  if (replace_all(page, kDataSlot, base64_encode(trajectory_bytes)) != 1) {
-    throw std::logic_error("replay_viewer.html must hold exactly one " + std::string(kDataSlot));
-  }
-  replace_all(page, kTitleSlot, html_escape(title));
-  return page;
+  return fill_template(kReplayViewerHtml, {{kDataSlot, base64_encode(trajectory_bytes)},
+                                           {kTitleSlot, html_escape(title), false}});
 }
 
 }  // namespace hns::tools

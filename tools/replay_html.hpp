@@ -4,13 +4,23 @@
 
 #include <string>
 #include <string_view>
+#include <vector>
 
 namespace hns::tools {
 
 // Text with &, <, >, " and ' escaped for HTML text and attribute values.
 std::string html_escape(const std::string& text);
-// Replaces every occurrence of `slot` in `text` with `value`; returns how many there were.
-int replace_all(std::string& text, std::string_view slot, const std::string& value);
+// A slot of a page template and the text that fills it. `exactly_once`: the template must hold it once
+// (a data slot); otherwise any number of times (the title).
+struct Slot {
+  std::string_view name;
+  std::string value;
+  bool exactly_once = true;
+};
+// The template with every slot filled, in one pass over the template: text that a value brings in is never
+// searched for slots (a metrics row holding "@HNS_REPLAY@" stays text). Throws std::logic_error when a data
+// slot is not in the template exactly once.
+std::string fill_template(std::string_view page, const std::vector<Slot>& slots);
 
 // Standard base64 (RFC 4648, with padding).
 std::string base64_encode(std::string_view bytes);

@@ -32,8 +32,6 @@ std::string script_safe(const std::string& json) {
 }  // namespace
 
 std::string render_report_html(const ReportInputs& in) {
-  std::string page(kReportViewerHtml);
-  // Data slots first (their values cannot contain the other slots once escaped), the title last.
   const std::string replay =
       in.replay_html.empty()
           ? std::string(
@@ -41,14 +39,11 @@ std::string render_report_html(const ReportInputs& in) {
                 "checkpoint into the run folder's <code>replay.traj</code>.</p>")
           : "<iframe title=\"replay\" sandbox=\"allow-scripts\" srcdoc=\"" + html_escape(in.replay_html) +
                 "\"></iframe>";
-  if (replace_all(page, "@HNS_METRICS_JSON@", script_safe(in.metrics_json)) != 1 ||
-      replace_all(page, "@HNS_CONFIG_JSON@", script_safe(in.config_json)) != 1 ||
-      replace_all(page, "@HNS_STAGES_JSON@", script_safe(in.stages_json)) != 1 ||
-      replace_all(page, "@HNS_REPLAY@", replay) != 1) {
-    throw std::logic_error("report_viewer.html must hold each data slot exactly once");
-  }
-  replace_all(page, "@HNS_TITLE@", html_escape(in.title));
-  return page;
+  return fill_template(kReportViewerHtml, {{"@HNS_METRICS_JSON@", script_safe(in.metrics_json)},
+                                           {"@HNS_CONFIG_JSON@", script_safe(in.config_json)},
+                                           {"@HNS_STAGES_JSON@", script_safe(in.stages_json)},
+                                           {"@HNS_REPLAY@", replay},
+                                           {"@HNS_TITLE@", html_escape(in.title), false}});
 }
 
 }  // namespace hns::tools

@@ -73,5 +73,22 @@ TEST(ReportHtml, DataCannotEndOrOpenAScriptElementAndTheReplayIsSandboxed) {
   EXPECT_NE(page.find("<iframe title=\"replay\" sandbox=\"allow-scripts\" srcdoc="), std::string::npos);
 }
 
+// Found by fuzz_pages: text in a run's files that names a slot of the template stays text (the slots were
+// filled one after another, so a metrics row holding "@HNS_REPLAY@" made hns report fail, or worse).
+TEST(ReportHtml, DataThatNamesASlotStaysText) {
+  ReportInputs in;
+  in.title = "@HNS_METRICS_JSON@";
+  in.metrics_json = "[{\"note\": \"@HNS_REPLAY@ @HNS_TITLE@ @HNS_CONFIG_JSON@\"}]";
+  in.config_json = "{\"note\": \"@HNS_STAGES_JSON@\"}";
+  in.stages_json = "{}";
+  const std::string page = render_report_html(in);
+  EXPECT_NE(page.find("[{\"note\": \"@HNS_REPLAY@ @HNS_TITLE@ @HNS_CONFIG_JSON@\"}]"), std::string::npos);
+  EXPECT_NE(page.find("{\"note\": \"@HNS_STAGES_JSON@\"}"), std::string::npos);
+  EXPECT_EQ(page.find("<iframe"), std::string::npos);
+  const std::string replay = render_replay_html("HNSTRAJ\n", "@HNS_TRAJECTORY_BASE64@");
+  EXPECT_NE(replay.find("@HNS_TRAJECTORY_BASE64@"), std::string::npos);
+  EXPECT_NE(replay.find(base64_encode("HNSTRAJ\n")), std::string::npos);
+}
+
 }  // namespace
 }  // namespace hns::tools
