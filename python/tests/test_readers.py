@@ -119,6 +119,12 @@ def test_record_refusals(checkpoint, tmp_path):
         hns.record(tmp_path / "no" / "x.traj")
     with pytest.raises(IsADirectoryError):
         hns.record(tmp_path)
+    import os
+
+    os.mkfifo(tmp_path / "fifo")  # a FIFO (or a device) is never replaced by a recording
+    with pytest.raises((OSError, ValueError, RuntimeError), match="not a regular file"):
+        hns.record(tmp_path / "fifo")
+    assert (tmp_path / "fifo").is_fifo()
     with pytest.raises(ValueError, match="episodes = 0"):
         hns.record(tmp_path / "x.traj", episodes=0)
     with pytest.raises(ValueError, match="hiders"):
