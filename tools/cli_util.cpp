@@ -37,17 +37,25 @@ void check_output_path(const std::string& flag, const std::string& path,
   // Whether the file can really be written there (access() says yes for root in /proc, and on a full or
   // read-only mount the answer comes from the write): PATH.tmp, which the atomic write uses, is created and
   // removed.
+  const size_t name_bytes = fs::path(path).filename().native().size();
+  if (name_bytes + 4 > NAME_MAX) {
+    reject("its name is too long to write PATH.tmp beside it first (" + std::to_string(name_bytes) +
+           " bytes; at most " + std::to_string(NAME_MAX - 4) + ")");
+  }
+  const fs::path out = fs::weakly_canonical(path, ec);
+  const fs::path out_tmp = fs::weakly_canonical(path + ".tmp", ec);
+  for (const std::string& in : inputs) {
+    std::error_code e2;
+    const fs::path p = in.empty() ? fs::path() : fs::weakly_canonical(in, e2);
+    if (!in.empty() && p == out) reject("is also an input of this command; choose another file");
+    if (!in.empty() && p == out_tmp)
+      reject("is written through " + path + ".tmp, which is an input of this command; choose another file");
+  }
   try {
     ::close(ppo::create_temp_file(path + ".tmp"));
     ::unlink((path + ".tmp").c_str());
-  } catch (const std::runtime_error&) {
-    reject("its folder " + parent.string() + " is not writable");
-  }
-  const fs::path out = fs::weakly_canonical(path, ec);
-  for (const std::string& in : inputs) {
-    std::error_code e2;
-    if (!in.empty() && fs::weakly_canonical(in, e2) == out)
-      reject("is also an input of this command; choose another file");
+  } catch (const std::runtime_error& e) {
+    reject(std::string("cannot be written: ") + e.what());
   }
 }
 
@@ -68,10 +76,8 @@ void check_path_length(const std::string& flag, const std::string& path) {
 namespace {
 // FNV-1a 64 of a file's bytes as 16 hex digits.
 std::string file_fingerprint(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  uint64_t h = ppo::kFnv1a64Basis;
-  char buf[1 << 16];
-  while (in.read(buf, sizeof buf) || in.gcount() > 0) h = ppo::fnv1a64(buf, size_t(in.gcount()), h);
+  const std::string bytes = ppo::read_regular_file(path, ppo::kMaxCheckpointBytes, "checkpoint");
+  const uint64_t h = ppo::fnv1a64(bytes.data(), bytes.size());
   char hex[17];
   std::snprintf(hex, sizeof hex, "%016llx", static_cast<unsigned long long>(h));
   return hex;
@@ -112,7 +118,11 @@ std::vector<Condition> parse_conditions(const std::string& seed_label,
       throw physics::ConfigError(flag + ": the checkpoint's model is " + theirs.model +
                                  ", this command's is " + model + " (--model)");
     }
-    c.fingerprint = file_fingerprint(c.checkpoint);
+    try {
+      c.fingerprint = file_fingerprint(c.checkpoint);
+    } catch (const std::exception& e) {
+      throw physics::ConfigError(flag + ": " + e.what());
+    }
     conditions.push_back(c);
   }
   return conditions;

@@ -367,8 +367,9 @@ int run_eval(const EvalOptions& opt) {
     throw physics::ConfigError(
         "--resume and --overwrite: give one (--resume continues the evaluation in --out)");
   // eval.md and eval.html without eval.json are not an evaluation to resume, and not replaced unasked either.
-  for (const char* name : {"eval.md", "eval.html"}) {
-    if (!fs::exists(eval_json, ec) && fs::exists(fs::symlink_status(dir / name, ec)) && !opt.overwrite) {
+  for (const char* name : {"eval.json", "eval.md", "eval.html"}) {
+    if (std::string(name) != "eval.json" && !fs::exists(eval_json, ec) &&
+        fs::exists(fs::symlink_status(dir / name, ec)) && !opt.overwrite) {
       throw physics::ConfigError("--out " + opt.out + " holds " + name +
                                  " but no eval.json: --overwrite replaces it, or give another folder");
     }

@@ -135,12 +135,13 @@ void check_run_folder(const std::string& dir) {
   std::error_code ec;
   if (!fs::exists(dir, ec)) return;
   if (!fs::is_directory(dir, ec)) throw physics::ConfigError("--out " + dir + " exists and is not a folder");
-  if (fs::exists(fs::path(dir) / kRunMarker, ec) ||
-      fs::exists(fs::path(dir) / ppo::FolderLock::kFileName, ec))
-    return;
+  if (fs::exists(fs::path(dir) / kRunMarker, ec)) return;
   fs::directory_iterator it(dir, ec);
   if (ec) throw physics::ConfigError("--out " + dir + " cannot be read: " + ec.message());
-  if (it == fs::directory_iterator()) return;  // empty
+  // Empty, but for the lock file a refused start may have left (it marks nothing: any hns train creates it).
+  while (it != fs::directory_iterator() && it->path().filename() == ppo::FolderLock::kFileName)
+    it.increment(ec);
+  if (it == fs::directory_iterator()) return;
   // A run from before the marker: a whole, valid checkpoint (its checksum checked), not 8 bytes of magic.
   const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
   if (fs::is_regular_file(ckpt, ec)) {
@@ -156,11 +157,24 @@ void check_run_folder(const std::string& dir) {
                              "removes files it did not write, --overwrite included)");
 }
 
+// A folder holds a run only once a checkpoint is there (a run stopped before its first checkpoint, by a NaN
+// or a crash in its first iterations, cannot be resumed, so the same command starts it over): refused
+// unless `overwrite`.
+void check_no_run_unless(bool overwrite, const std::string& dir, const std::string& ckpt) {
+  std::error_code ec;
+  if (fs::exists(ckpt, ec) && !overwrite) {
+    throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
+                               ", or start over with --overwrite");
+  }
+}
+
 // The run folder `dir`, locked for this process (ppo::FolderLock): a second hns train into a folder that a
 // running one uses is refused at start (ConfigError, exit 2), naming the running one's process.
 ppo::FolderLock lock_run_folder(const std::string& flag, const std::string& dir) {
   try {
-    return ppo::FolderLock(dir);
+    ppo::FolderLock lock(dir);
+    if (!lock.warning().empty()) std::fprintf(stderr, "hns train: warning: %s\n", lock.warning().c_str());
+    return lock;
   } catch (const std::runtime_error& e) {
     throw physics::ConfigError(flag + " " + e.what());
   }
@@ -303,12 +317,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     check_run_folder(dir);
     std::error_code ec;
     if (fs::is_directory(dir, ec)) lock = lock_run_folder("--out", dir);
-    // A folder holds a run only once a checkpoint is there: a run stopped before its first checkpoint
-    // (a NaN or a crash in its first iterations) cannot be resumed, so the same command starts it over.
-    if (fs::exists(ckpt) && !opt.overwrite) {
-      throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
-                                 ", or start over with --overwrite");
-    }
+    check_no_run_unless(opt.overwrite, dir, ckpt);
   }
   // The trainer, and the checkpoint it resumes or starts from, before the folder is created or any file of it
   // removed: a refused checkpoint changes nothing.
@@ -358,7 +367,12 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
       throw physics::ConfigError("--out " + dir + " is not writable");
     // A folder that did not exist at the check above is locked now: of two runs started into one new
     // folder at once, the second to get here is refused.
-    if (!lock.held()) lock = lock_run_folder("--out", dir);
+    if (!lock.held()) {
+      lock = lock_run_folder("--out", dir);
+      // What another run may have put there between the checks above and the lock.
+      check_run_folder(dir);
+      check_no_run_unless(opt.overwrite, dir, ckpt);
+    }
     if (!opt.config_file.empty() && fs::equivalent(opt.config_file, fs::path(dir) / "config.json", ec)) {
       throw physics::ConfigError("--config " + opt.config_file + " is the run's own config.json in --out " +
                                  dir + ", which the run rewrites: copy it elsewhere first");
@@ -445,8 +459,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   // iterations are read first, silently. A run without one of the teams has no stages to detect.
   replay::StageTracker stages(cfg.hiders == 0 || cfg.seekers == 0 ? "" : cfg.scene);
   {
-    std::istringstream earlier(earlier_metrics);
+    std::istringstream earlier(std::move(earlier_metrics));
     for (std::string line; std::getline(earlier, line);) stages.add(line);
+    earlier_metrics = std::string();
   }
   std::ofstream metrics(metrics_path, std::ios::app);
   if (!metrics) throw std::runtime_error("cannot write " + metrics_path);

@@ -66,11 +66,12 @@ std::string read_regular_file(const std::string& path, uint64_t max_bytes, std::
   };
   if (uint64_t(st.st_size) > max_bytes) throw too_large();
   ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
-  std::string bytes(size_t(st.st_size), '\0');
+  // One byte more than the size, to see the end in the same pass; more only for a file that grows meanwhile.
+  std::string bytes(size_t(st.st_size) + 1, '\0');
   size_t done = 0;
   for (;;) {
     if (done == bytes.size()) {
-      if (done >= max_bytes + 1) throw too_large();
+      if (done > max_bytes) throw too_large();
       bytes.resize(std::min<uint64_t>(max_bytes + 1, std::max<uint64_t>(2 * done, 4096)));
     }
     const ssize_t n = ::read(fd, bytes.data() + done, bytes.size() - done);
@@ -121,6 +122,11 @@ FolderLock::FolderLock(const std::string& folder) {
     char buf[512] = {};
     const ssize_t n = ::pread(fd, buf, sizeof buf - 1, 0);
     ::close(fd);
+    if (err == ENOLCK || err == EOPNOTSUPP || err == ENOSYS) {
+      warning_ = "the file system of " + folder + " cannot lock files (" + std::strerror(err) +
+                 "): nothing stops a second hns train from writing into it at the same time";
+      return;
+    }
     if (err != EWOULDBLOCK) throw std::runtime_error("cannot lock " + path + ": " + std::strerror(err));
     std::string holder = n > 0 ? std::string(buf, size_t(n)) : std::string();
     while (!holder.empty() && (holder.back() == '\n' || holder.back() == ' ')) holder.pop_back();
@@ -146,6 +152,7 @@ FolderLock& FolderLock::operator=(FolderLock&& other) noexcept {
   if (this != &other) {
     if (fd_ >= 0) ::close(fd_);
     fd_ = other.fd_;
+    warning_ = std::move(other.warning_);
     other.fd_ = -1;
   }
   return *this;

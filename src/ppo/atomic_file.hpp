@@ -66,17 +66,22 @@ class FolderLock {
   static constexpr const char* kFileName = ".hns-lock";
   FolderLock() = default;
   // Takes the lock; throws FileError "FOLDER is in use by process PID (COMMAND LINE)" when another process
-  // holds it, std::runtime_error when the lock file cannot be created.
+  // holds it, std::runtime_error when the lock file cannot be created. Where the file system has no flock
+  // (ENOLCK, EOPNOTSUPP, ENOSYS: some network file systems) the folder goes unlocked and warning() says so.
   explicit FolderLock(const std::string& folder);
-  FolderLock(FolderLock&& other) noexcept : fd_(other.fd_) { other.fd_ = -1; }
+  FolderLock(FolderLock&& other) noexcept : fd_(other.fd_), warning_(std::move(other.warning_)) {
+    other.fd_ = -1;
+  }
   FolderLock& operator=(FolderLock&& other) noexcept;
   FolderLock(const FolderLock&) = delete;
   FolderLock& operator=(const FolderLock&) = delete;
   ~FolderLock();
-  bool held() const { return fd_ >= 0; }
+  bool held() const { return fd_ >= 0 || !warning_.empty(); }
+  const std::string& warning() const { return warning_; }
 
  private:
   int fd_ = -1;
+  std::string warning_;
 };
 
 // Size limits of hns's files, far above anything hns writes and far below what would exhaust a machine.

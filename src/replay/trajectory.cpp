@@ -640,11 +640,19 @@ TrajectoryWriter::TrajectoryWriter(const std::string& path, const TrajectoryFile
     std::remove(tmp_.c_str());
     throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(err));
   }
-  const std::string head = std::string(kTrajectoryMagic) + file_chunk(meta, episodes);
-  if (std::fwrite(head.data(), 1, head.size(), out_) != head.size()) {
-    throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(errno));
+  // A constructor that throws runs no destructor: the file is closed and removed here.
+  try {
+    const std::string head = std::string(kTrajectoryMagic) + file_chunk(meta, episodes);
+    if (std::fwrite(head.data(), 1, head.size(), out_) != head.size()) {
+      throw std::runtime_error("cannot write " + tmp_ + ": " + std::strerror(errno));
+    }
+    bytes_ = head.size();
+  } catch (...) {
+    std::fclose(out_);
+    out_ = nullptr;
+    std::remove(tmp_.c_str());
+    throw;
   }
-  bytes_ = head.size();
 }
 
 TrajectoryWriter::~TrajectoryWriter() {

@@ -145,7 +145,7 @@ expect_fail 2 "--checkpoint" play --checkpoint "" --out "$tmp/x.traj"
 expect_fail 2 "--out" train --config "$tmp/train.json" --iterations 1 --out ""
 expect_fail 2 "--config" train --config "" --iterations 1 --out "$tmp/x2"
 expect_fail 2 "--json" bench --envs 1 --steps 1 --json ""
-expect_fail 2 "--out /proc/.*not writable" play --scene quadrant --out /proc/self/hns-test.traj
+expect_fail 2 "--out /proc/.*cannot be written" play --scene quadrant --out /proc/self/hns-test.traj
 expect_fail 2 "--out .*too long" train --config "$tmp/train.json" --out "$tmp/$(printf 'a%.0s' $(seq 300))"
 expect_fail 2 "--overwrite and --resume" train --resume "$tmp/run" --overwrite
 [ -e "$tmp/x2" ] && fail "a refused command created its run folder"
@@ -157,6 +157,16 @@ echo "mine" >"$tmp/looks/config.json"
 expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/looks" --overwrite
 [ "$(cat "$tmp/looks/config.json")" = "mine" ] && ok || fail "--overwrite replaced a folder's config.json"
 
+# A refused --resume of a folder that is not a run leaves at most the lock file, which marks nothing: the
+# folder is still refused as a run folder afterwards, and the user's files are untouched.
+mkdir "$tmp/notrun"
+echo "my own" >"$tmp/notrun/checkpoint.bin"
+echo "my own" >"$tmp/notrun/metrics.jsonl"
+expect_fail 2 "" train --resume "$tmp/notrun"
+expect_fail 2 "not a run folder" train --config "$tmp/train.json" --out "$tmp/notrun" --overwrite
+[ "$(cat "$tmp/notrun/checkpoint.bin")" = "my own" ] && [ "$(cat "$tmp/notrun/metrics.jsonl")" = "my own" ] && ok ||
+  fail "a folder that only a refused --resume had touched was taken for a run folder"
+
 # hns counting and hns eval replace earlier results only when asked.
 mkdir "$tmp/probe" "$tmp/evals"
 echo "mine" >"$tmp/probe/counting.md"
@@ -164,6 +174,9 @@ echo "mine" >"$tmp/evals/eval.md"
 expect_fail 2 "holds counting.md.*--overwrite" counting --out "$tmp/probe" --seeds 1
 expect_fail 2 "holds eval.md but no eval.json" eval --out "$tmp/evals" --tasks lockbox --seeds 1
 expect_fail 2 "--resume and --overwrite" eval --out "$tmp/evals" --tasks lockbox --resume --overwrite
+mkdir "$tmp/evalfifo"
+mkfifo "$tmp/evalfifo/eval.json"
+expect_fail 2 "eval.json is not a regular file" eval --out "$tmp/evalfifo" --tasks lockbox --seeds 1 --overwrite
 [ "$(cat "$tmp/probe/counting.md")" = "mine" ] && [ "$(cat "$tmp/evals/eval.md")" = "mine" ] && ok ||
   fail "counting or eval replaced a file it was not asked to"
 
