@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   CLI::App app{"hns: hide-and-seek simulator and trainer (physics on ODE)"};
+  app.name("hns");
   app.require_subcommand(1);
   std::vector<hns::tools::Command> commands;
   hns::tools::add_bench_command(app, commands);
@@ -53,6 +54,20 @@ int main(int argc, char** argv) {
       opt->check(non_empty);
       if (opt->get_type_name().rfind("INT", 0) == 0) opt->check(decimal_integer);
     }
+  }
+
+  // `hns help` and `hns help COMMAND` are --help spelled as a command.
+  if (argc > 1 && std::string(argv[1]) == "help") {
+    if (argc > 2) {
+      for (const hns::tools::Command& c : commands) {
+        if (c.app->get_name() == argv[2]) {
+          std::cout << c.app->help();
+          return 0;
+        }
+      }
+    }
+    std::cout << app.help();
+    return argc > 2 ? 2 : 0;
   }
 
   // An unknown command gets named (CLI11 would only say that a subcommand is required).

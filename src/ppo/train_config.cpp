@@ -124,10 +124,11 @@ std::string text_of(int v) {
 std::string text_of(uint64_t v) {
   return std::to_string(v);
 }
+// The shortest text that reads back as the same double (0.0003, not 0.00029999999999999997).
 std::string text_of(double v) {
   char buf[32];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v, std::chars_format::general);
+  return std::string(buf, ec == std::errc() ? end : buf);
 }
 
 std::string json_string(const std::string& s) {

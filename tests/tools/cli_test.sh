@@ -31,6 +31,13 @@ expect_fail 2 "boxes.max = 20" bench --scene quadrant --boxes 20
 expect_fail 2 "hiders" bench --hiders 0 --seekers 0
 expect_fail 2 "" bench --no-such-flag
 expect_fail 2 "" frobnicate
+# `hns help` is the overview, `hns help COMMAND` that command's help; both exit 0.
+if "$hns" help 2>&1 | grep -q "Subcommands:" && "$hns" help train 2>&1 | grep -q -- "--resume"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: hns help / hns help train"
+fi
 
 # has_fields FILE NAME...: the JSON file has every named key.
 has_fields() {
