@@ -3,10 +3,12 @@
 
     PYTHONPATH=build/python python3 examples/plot_run.py runs/quickstart --out curves.png
 
-Without matplotlib it prints the same columns as a table instead.
+Without matplotlib it prints the same columns as a table instead; given --out, it then also says on stderr that
+no picture was written and exits with status 1.
 """
 import argparse
 import os
+import sys
 
 import hns
 
@@ -37,6 +39,9 @@ def main():
         print("agent_steps " + " ".join(names))
         for i in range(len(rows)):
             print("%11.0f " % steps[i] + " ".join("%g" % hns.metrics_column(rows[i:i + 1], n)[0] for n in names))
+        if args.out is not None:
+            print("plot_run.py: %s not written: matplotlib is not installed" % args.out, file=sys.stderr)
+            sys.exit(1)
         return
     fig, axes = plt.subplots(len(CURVES), 1, figsize=(8, 2.6 * len(CURVES)), sharex=True)
     for ax, (first, second, title) in zip(axes, CURVES):

@@ -8,11 +8,11 @@ import pytest
 EXAMPLES = os.path.join(os.path.dirname(__file__), "..", "..", "examples")
 
 
-def run_example(name, *args):
+def run_example(name, *args, status=0):
     result = subprocess.run([sys.executable, os.path.join(EXAMPLES, name), *map(str, args)],
                             capture_output=True, text=True, env=dict(os.environ))
-    assert result.returncode == 0, result.stdout + result.stderr
-    return result.stdout
+    assert result.returncode == status, result.stdout + result.stderr
+    return result.stdout + result.stderr
 
 
 def test_random_loop_prints_returns():
@@ -26,10 +26,14 @@ def test_random_loop_with_a_checkpoint(checkpoint):
 
 
 def test_plot_run(checkpoint, tmp_path):
-    out = run_example("plot_run.py", checkpoint.parent, "--out", tmp_path / "curves.png")
     try:
         import matplotlib  # noqa: F401
     except ImportError:
+        # The table instead, and with --out a failure that says the picture was not written.
+        out = run_example("plot_run.py", checkpoint.parent)
         assert "matplotlib is not installed" in out and "hider_reward" in out
+        out = run_example("plot_run.py", checkpoint.parent, "--out", tmp_path / "curves.png", status=1)
+        assert "curves.png not written" in out and not (tmp_path / "curves.png").exists()
     else:
+        run_example("plot_run.py", checkpoint.parent, "--out", tmp_path / "curves.png")
         assert (tmp_path / "curves.png").stat().st_size > 1000
