@@ -89,7 +89,7 @@ fi
 "$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/busy" >"$tmp/busy.log" 2>&1 &
 busy=$!
 pids+=("$busy")
-for _ in $(seq 200); do [ -s "$tmp/busy/checkpoint.bin" ] && break; sleep 0.1; done
+for _ in $(seq 1200); do [ -s "$tmp/busy/checkpoint.bin" ] && break; sleep 0.1; done  # sanitizer builds are slow
 expect_fail 2 "busy.*in use by process $busy" train --config "$tmp/train.json" --iterations 1 --out "$tmp/busy" --overwrite
 expect_fail 2 "busy.*in use by process $busy" train --resume "$tmp/busy" --iterations 1
 kill -INT "$busy"
@@ -108,7 +108,9 @@ pids+=("$t1")
 "$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/twin" >"$tmp/twin2.log" 2>&1 &
 t2=$!
 pids+=("$t2")
-sleep 4
+# The refused one ends by itself (exit 2) once the other holds the folder; then the other is stopped.
+for _ in $(seq 1200); do kill -0 "$t1" 2>/dev/null && kill -0 "$t2" 2>/dev/null || break; sleep 0.1; done
+for _ in $(seq 1200); do [ -s "$tmp/twin/checkpoint.bin" ] && break; sleep 0.1; done
 kill -INT "$t1" "$t2" 2>/dev/null
 wait "$t1"
 r1=$?
