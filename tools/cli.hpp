@@ -7,6 +7,7 @@
 #include "batch/host.hpp"
 
 #include <functional>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,15 @@ void write_atomically(const std::string& path, const std::string& text);
 // (files the command reads). Throws physics::ConfigError naming the flag and the reason.
 void check_output_path(const std::string& flag, const std::string& path,
                        const std::vector<std::string>& inputs = {});
+
+// The project version and the git commit of the source it was built from ("unknown" outside a checkout;
+// "-dirty" when the tree had changes), written at build time by cmake/HnsVersion.cmake.
+extern const char* const kHnsVersion;
+extern const char* const kHnsCommit;
+
+// What a benchmark figure needs to be traced to its machine and build: hns's version and commit, the CPU's
+// model name (/proc/cpuinfo) and the instruction set the binary runs. Added to every `bench --json`.
+nlohmann::json build_and_machine();
 
 // Refuses (physics::ConfigError naming `flag`) a path longer than PATH_MAX or with a name longer than
 // NAME_MAX, which the file system would refuse only once the work is done.

@@ -11,6 +11,7 @@
 #include <system_error>
 
 #include "cli.hpp"
+#include "nn/kernels.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/trainer.hpp"
@@ -146,6 +147,22 @@ std::string threads_text(int requested) {
            " available: " + std::to_string(used) + " used";
   }
   return std::to_string(used) + (used == 1 ? " thread" : " threads");
+}
+
+nlohmann::json build_and_machine() {
+  std::string cpu = "unknown";
+  std::ifstream info("/proc/cpuinfo");
+  for (std::string line; std::getline(info, line);) {
+    if (line.rfind("model name", 0) == 0 && line.find(':') != std::string::npos) {
+      cpu = line.substr(line.find(':') + 1);
+      cpu.erase(0, cpu.find_first_not_of(' '));
+      break;
+    }
+  }
+  return {{"hns_version", kHnsVersion},
+          {"commit", kHnsCommit},
+          {"cpu_model", cpu},
+          {"isa", nn::kernels::isa_description()}};
 }
 
 void write_atomically(const std::string& path, const std::string& text) {

@@ -116,7 +116,7 @@ int run_bench(const BenchOptions& opt) {
               static_cast<long long>(sim.unstable_resets()), 1e6 * double(sim.unstable_resets()) / env_steps);
 
   if (!opt.json.empty()) {
-    nlohmann::json j;
+    nlohmann::json j = build_and_machine();
     j["scene"] = opt.scene;
     j["envs"] = opt.envs;
     j["threads"] = config.threads;
@@ -247,6 +247,7 @@ int run_nn_bench(const BenchOptions& opt) {
                         {"infer_seconds", r.infer_seconds},
                         {"train_seconds", r.train_seconds}};
     if (bf16) j["gemm_bf16_gflops"] = r.gemm_bf16_gflops;
+    j.update(build_and_machine());
     write_atomically(opt.json, j.dump(2) + "\n");
     std::printf("  wrote %s\n", opt.json.c_str());
   }

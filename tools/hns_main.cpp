@@ -56,6 +56,11 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (argc == 2 && (std::string(argv[1]) == "--version" || std::string(argv[1]) == "version")) {
+    std::cout << "hns " << hns::tools::kHnsVersion << " (commit " << hns::tools::kHnsCommit << ", "
+              << hns::nn::kernels::isa_description() << ")\n";
+    return 0;
+  }
   // `hns help` and `hns help COMMAND` are --help spelled as a command.
   if (argc > 1 && std::string(argv[1]) == "help") {
     if (argc > 2) {

@@ -31,6 +31,13 @@ expect_fail 2 "boxes.max = 20" bench --scene quadrant --boxes 20
 expect_fail 2 "hiders" bench --hiders 0 --seekers 0
 expect_fail 2 "" bench --no-such-flag
 expect_fail 2 "" frobnicate
+# `hns --version` names the version, the commit and the instruction set.
+if "$hns" --version | grep -E -q "^hns [0-9]+\.[0-9]+\.[0-9]+ \(commit [0-9a-f]+(-dirty)?|unknown"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: hns --version: $("$hns" --version 2>&1)"
+fi
 # `hns help` is the overview, `hns help COMMAND` that command's help; both exit 0.
 if "$hns" help 2>&1 | grep -q "Subcommands:" && "$hns" help train 2>&1 | grep -q -- "--resume"; then
   passed=$((passed + 1))
@@ -49,7 +56,8 @@ has_fields() {
 # A short real run writes the JSON figures, and no temporary file is left behind.
 if "$hns" bench --scene full --envs 2 --steps 20 --json "$tmp/out.json" >"$tmp/log" 2>&1 &&
    grep -q '"env_steps_per_s"' "$tmp/out.json" && grep -q '"agent_steps_per_s"' "$tmp/out.json" &&
-   has_fields "$tmp/out.json" phases physics_s mirror_s vision_lidar_s observations_s rewards_resets_s &&
+   has_fields "$tmp/out.json" phases physics_s mirror_s vision_lidar_s observations_s rewards_resets_s \
+     hns_version commit cpu_model isa &&
    grep -q '"scene": "full"' "$tmp/out.json" &&
    [ ! -e "$tmp/out.json.tmp" ] && grep -q "env-steps/s" "$tmp/log"; then
   passed=$((passed + 1))
@@ -63,7 +71,7 @@ if grep -q avx512_bf16 /proc/cpuinfo; then nn_precision=bf16; else nn_precision=
 if "$hns" bench --nn small --masks quadrant --precision auto --json "$tmp/nn.json" >"$tmp/log" 2>&1 &&
    has_fields "$tmp/nn.json" model threads params isa masks infer_agent_steps_per_s train_agent_steps_per_s \
      infer_gflops train_gflops infer_useful_gflops train_useful_gflops gemm_gflops precision \
-     precision_description &&
+     precision_description hns_version commit cpu_model &&
    grep -q "\"precision\": \"$nn_precision\"" "$tmp/nn.json" &&
    { [ "$nn_precision" = fp32 ] || has_fields "$tmp/nn.json" gemm_bf16_gflops; } &&
    grep -q '"masks": "quadrant"' "$tmp/nn.json" && grep -q "instruction set" "$tmp/log" &&
