@@ -292,7 +292,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   try {
     cfg.precision = std::string(nn::precision_name(cfg.resolve_precision()));
   } catch (const physics::ConfigError&) {
-    if (!resume || cfg.precision != run_precision) throw;
+    if (!resume || cfg.precision != run_precision || nn::CpuFeatures::detect().avx512_bf16) throw;
     throw physics::ConfigError(
         "--resume " + dir + ": the run trains in precision " + cfg.precision +
         " (its config.json), and this CPU has no AVX512-BF16 (bf16 is not emulated): resume it on a CPU that "

@@ -1,14 +1,20 @@
-// The AVX512-BF16 kernels of nn/bf16_gemm.hpp. Every function that uses the extension carries it in a target
-// attribute (kBf16Target), so this file builds with the library's flags (AVX2 or AVX-512 without BF16) and
-// the rest of the library never meets an instruction its CPU may lack; callers check available() first.
+// The AVX512-BF16 kernels of nn/bf16_gemm.hpp, the layouts of both kernels and the choice between them (the
+// AMX kernel is nn/bf16_amx.cpp). Every function that uses the extension carries it in a target attribute
+// (HNS_BF16_TARGET), so this file builds with the library's flags (AVX2 or AVX-512 without BF16) and the
+// rest of the library never meets an instruction its CPU may lack; callers check available() first.
 #include "nn/bf16_gemm.hpp"
 
 #include <immintrin.h>
 
+#include <atomic>
 #include <bit>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <stdexcept>
+#include <string>
+
+#include "nn/bf16_amx.hpp"
 
 #define HNS_BF16_TARGET __attribute__((target("avx512f,avx512bw,avx512vl,avx512dq,avx512bf16")))
 #define HNS_BF16_INLINE HNS_BF16_TARGET inline __attribute__((always_inline))
@@ -19,10 +25,25 @@ namespace {
 constexpr int kRowsPerTile = 6;       // 6 x 4 accumulators of AVX-512's 32 registers
 constexpr int kMaxGatherCols = 4096;  // columns of a transposed or permuted pack_b
 
+std::atomic<int> g_kernel{-1};  // the Kernel in use; -1 until kernel() first decides
+
+bool tiles(Kernel k) {
+  return k != Kernel::kAvx512Bf16;
+}
 int pairs(int k) {
   return (k + 1) / 2;
 }
-// Rows of convert_a_transposed's layout: a whole number of vectors.
+int round_up(int x, int to) {
+  return (x + to - 1) / to * to;
+}
+// k's pairs padded to the kernel's pair block (B's pairs per panel, half of A's row).
+int padded_pairs(int k, Kernel kern) {
+  return tiles(kern) ? round_up(pairs(k), amx::kTilePairs) : pairs(k);
+}
+int padded_rows(int rows, Kernel kern) {
+  return tiles(kern) ? round_up(rows, amx::kTileRows) : rows;
+}
+// Rows of convert_a_transposed's vdpbf16ps layout: a whole number of vectors.
 ptrdiff_t transposed_rows(int rows) {
   return (rows + kVecCols - 1) / kVecCols * kVecCols;
 }
@@ -123,7 +144,7 @@ HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda,
 
 HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
                                  float* c, ptrdiff_t ldc, bool accumulate) {
-  const int k2 = pairs(k);
+  const int k2 = pairs(k);               // (B's pairs per panel: no padding for this kernel)
   const ptrdiff_t a_step = 2 * lda.row;  // bf16 elements from one row of A to the next
   for (int n0 = 0; n0 < n; n0 += kPanel) {
     const int width = panel_width(n, n0);
@@ -142,8 +163,9 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
 
 // ---- packing
 
-// Row pair (r0, r1) of B (r1 may be null: zeros), columns [0, n) as floats, into every panel's pair p.
-HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int k2, int p, bf16_t* out) {
+// Row pair (r0, r1) of B (r1 may be null: zeros), columns [0, n) as floats, into every panel's pair p (kp
+// pairs per panel).
+HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int kp, int p, bf16_t* out) {
   for (int j = 0; j < n; j += kVecCols) {
     const int count = n - j;
     const __m512 x0 = load_masked(r0 + j, count);
@@ -151,20 +173,31 @@ HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int
     const int n0 = j / kPanel * kPanel;
     const int width = panel_width(n, n0);
     bf16_t* dst =
-        out + static_cast<ptrdiff_t>(n0) * 2 * k2 + (static_cast<ptrdiff_t>(p) * width + (j - n0)) * 2;
+        out + static_cast<ptrdiff_t>(n0) * 2 * kp + (static_cast<ptrdiff_t>(p) * width + (j - n0)) * 2;
     _mm512_storeu_si512(dst, cvt_pairs(x0, x1));
   }
 }
 
+// Zeros in the pairs [k2, kp) of every panel (the padding of k for AMX).
+void zero_padding_pairs(int k2, int kp, int n, bf16_t* out) {
+  if (kp == k2) return;
+  for (int n0 = 0; n0 < n; n0 += kPanel) {
+    const ptrdiff_t width = panel_width(n, n0);
+    std::memset(out + n0 * 2 * ptrdiff_t(kp) + k2 * width * 2, 0,
+                sizeof(bf16_t) * size_t((kp - k2) * width * 2));
+  }
+}
+
 HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, bool transpose,
-                                   const int* col_map, bf16_t* out) {
+                                   const int* col_map, int kp, bf16_t* out) {
   const int k2 = pairs(k);
+  zero_padding_pairs(k2, kp, n, out);
   // (pack_pair_rows writes whole vectors of 16 columns, zeros past n: the padding of the last panel.)
   if (!transpose && col_map == nullptr) {
     for (int p = 0; p < k2; ++p) {
       const float* r0 = w + 2 * static_cast<ptrdiff_t>(p) * ldw;
       const float* r1 = 2 * p + 1 < k ? r0 + ldw : nullptr;
-      pack_pair_rows(r0, r1, n, k2, p, out);
+      pack_pair_rows(r0, r1, n, kp, p, out);
     }
     return;
   }
@@ -189,12 +222,14 @@ HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, 
         row1[j] = i1 < k ? w[i1 * ldw + c] : 0.0f;
       }
     }
-    pack_pair_rows(row0, row1, n, k2, p, out);
+    pack_pair_rows(row0, row1, n, kp, p, out);
   }
 }
 
-HNS_BF16_TARGET void convert_a_avx512(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out) {
-  const ptrdiff_t lda = 2 * static_cast<ptrdiff_t>(pairs(k));
+// (lda: a multiple of 32 or k rounded up to even; padded_rows: rows and the zero rows after them)
+HNS_BF16_TARGET void convert_a_avx512(const float* x, ptrdiff_t ldx, int rows, int k, ptrdiff_t lda,
+                                      int padded_rows, bf16_t* out) {
+  std::memset(out + rows * lda, 0, sizeof(bf16_t) * size_t((padded_rows - rows) * lda));
   for (int m = 0; m < rows; ++m) {
     const float* xr = x + m * ldx;
     bf16_t* o = out + m * lda;
@@ -229,6 +264,62 @@ HNS_BF16_TARGET void convert_a_transposed_avx512(const float* x, ptrdiff_t ldx, 
   }
 }
 
+// 16 x 16 dwords transposed in registers: r[i]'s element j becomes r[j]'s element i.
+HNS_BF16_INLINE void transpose16(__m512i r[16]) {
+  __m512i t[16];
+  for (int i = 0; i < 8; ++i) {
+    t[2 * i] = _mm512_unpacklo_epi32(r[2 * i], r[2 * i + 1]);
+    t[2 * i + 1] = _mm512_unpackhi_epi32(r[2 * i], r[2 * i + 1]);
+  }
+  // Within each 128-bit lane L, r[4i + j] then holds element 4L + j of rows 4i .. 4i + 3.
+  for (int i = 0; i < 4; ++i) {
+    r[4 * i] = _mm512_unpacklo_epi64(t[4 * i], t[4 * i + 2]);
+    r[4 * i + 1] = _mm512_unpackhi_epi64(t[4 * i], t[4 * i + 2]);
+    r[4 * i + 2] = _mm512_unpacklo_epi64(t[4 * i + 1], t[4 * i + 3]);
+    r[4 * i + 3] = _mm512_unpackhi_epi64(t[4 * i + 1], t[4 * i + 3]);
+  }
+  // Row 4L + j of the result is lane L of r[j], r[4 + j], r[8 + j], r[12 + j].
+  for (int j = 0; j < 4; ++j) {
+    const __m512i x0 = _mm512_shuffle_i32x4(r[j], r[4 + j], 0x88);  // lanes 0, 2 of each
+    const __m512i x1 = _mm512_shuffle_i32x4(r[j], r[4 + j], 0xDD);  // lanes 1, 3
+    const __m512i y0 = _mm512_shuffle_i32x4(r[8 + j], r[12 + j], 0x88);
+    const __m512i y1 = _mm512_shuffle_i32x4(r[8 + j], r[12 + j], 0xDD);
+    t[j] = _mm512_shuffle_i32x4(x0, y0, 0x88);
+    t[8 + j] = _mm512_shuffle_i32x4(x0, y0, 0xDD);
+    t[4 + j] = _mm512_shuffle_i32x4(x1, y1, 0x88);
+    t[12 + j] = _mm512_shuffle_i32x4(x1, y1, 0xDD);
+  }
+  for (int i = 0; i < 16; ++i) r[i] = t[i];
+}
+
+// convert_a_transposed for AMX: whole tiles of 16 rows (x's columns) x 16 pairs (of x's rows).
+HNS_BF16_TARGET void convert_a_tiles_avx512(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out) {
+  const int k2 = pairs(k);
+  const int kp = round_up(k2, amx::kTilePairs);
+  for (int m0 = 0; m0 < rows; m0 += amx::kTileRows) {
+    const int count = rows - m0;
+    for (int p0 = 0; p0 < kp; p0 += amx::kTilePairs) {
+      __m512i r[16];  // r[i]: pair p0 + i of rows m0 .. m0 + 15
+      for (int i = 0; i < 16; ++i) {
+        const int p = p0 + i;
+        if (p >= k2) {
+          r[i] = _mm512_setzero_si512();
+          continue;
+        }
+        const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx + m0;
+        const __m512 x0 = load_masked(r0, count);
+        const __m512 x1 = 2 * p + 1 < k ? load_masked(r0 + ldx, count) : _mm512_setzero_ps();
+        r[i] = cvt_pairs(x0, x1);
+      }
+      transpose16(r);
+      bf16_t* tile = out + (static_cast<ptrdiff_t>(m0 / amx::kTileRows) * (kp / amx::kTilePairs) +
+                            p0 / amx::kTilePairs) *
+                               (amx::kTileRows * 2 * amx::kTilePairs);
+      for (int i = 0; i < 16; ++i) _mm512_storeu_si512(tile + i * 2 * amx::kTilePairs, r[i]);
+    }
+  }
+}
+
 bool detect() {
   __builtin_cpu_init();
   return __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512bw") &&
@@ -258,49 +349,119 @@ float to_float(bf16_t x) {
   return std::bit_cast<float>(static_cast<uint32_t>(x) << 16);
 }
 
+const char* kernel_name(Kernel k) {
+  switch (k) {
+    case Kernel::kAmx:
+      return "amx";
+    case Kernel::kAmxEmulated:
+      return "amx-emulated";
+    default:
+      return "avx512-bf16";
+  }
+}
+
+bool amx_available() {
+  return available() && amx::hardware_available();
+}
+
+Kernel kernel() {
+  int k = g_kernel.load(std::memory_order_acquire);
+  if (k >= 0) return static_cast<Kernel>(k);
+  Kernel chosen = amx_available() ? Kernel::kAmx : Kernel::kAvx512Bf16;
+  if (const char* env = std::getenv("HNS_BF16_KERNEL"); env != nullptr && *env != '\0') {
+    const std::string v = env;
+    if (v == "avx512-bf16") {
+      chosen = Kernel::kAvx512Bf16;
+    } else if (v == "amx") {
+      if (!amx_available())
+        throw std::invalid_argument("HNS_BF16_KERNEL=amx, but this CPU (or its OS) has no AMX-BF16 tiles");
+      chosen = Kernel::kAmx;
+    } else {
+      throw std::invalid_argument("HNS_BF16_KERNEL='" + v + "' is not one of avx512-bf16, amx");
+    }
+  }
+  g_kernel.store(static_cast<int>(chosen), std::memory_order_release);
+  return chosen;
+}
+
+void set_kernel(Kernel k) {
+  if (!available()) throw std::invalid_argument("bf16 kernels need AVX512-BF16, which this CPU lacks");
+  if (k == Kernel::kAmx && !amx_available())
+    throw std::invalid_argument("the amx kernel needs AMX-BF16 tiles, which this CPU (or its OS) lacks");
+  g_kernel.store(static_cast<int>(k), std::memory_order_release);
+}
+
 size_t packed_elems(int k, int n) {
+  const int kp = padded_pairs(k, kernel());
   size_t total = 0;
-  for (int n0 = 0; n0 < n; n0 += kPanel) total += static_cast<size_t>(panel_width(n, n0)) * 2 * pairs(k);
+  for (int n0 = 0; n0 < n; n0 += kPanel) total += static_cast<size_t>(panel_width(n, n0)) * 2 * kp;
   return total;
 }
 
+size_t a_row_elems(int k) {
+  return 2 * static_cast<size_t>(padded_pairs(k, kernel()));
+}
+
+size_t a_elems(int rows, int k) {
+  return static_cast<size_t>(padded_rows(rows, kernel())) * a_row_elems(k);
+}
+
 void pack_b(const float* w, ptrdiff_t ldw, int k, int n, bool transpose, const int* col_map, bf16_t* out) {
-  pack_b_avx512(w, ldw, k, n, transpose, col_map, out);
+  pack_b_avx512(w, ldw, k, n, transpose, col_map, padded_pairs(k, kernel()), out);
 }
 
 void convert_a(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out) {
-  convert_a_avx512(x, ldx, rows, k, out);
+  const Kernel kern = kernel();
+  convert_a_avx512(x, ldx, rows, k, static_cast<ptrdiff_t>(a_row_elems(k)), padded_rows(rows, kern), out);
 }
 
 size_t at_elems(int rows, int k) {
+  const Kernel kern = kernel();
+  if (tiles(kern)) return static_cast<size_t>(padded_rows(rows, kern)) * 2 * padded_pairs(k, kern);
   return 2 * static_cast<size_t>(pairs(k)) * static_cast<size_t>(transposed_rows(rows));
 }
 
 void convert_a_transposed(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out) {
+  if (tiles(kernel())) return convert_a_tiles_avx512(x, ldx, k, rows, out);
   convert_a_transposed_avx512(x, ldx, k, rows, out);
 }
 
 void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
           bool accumulate) {
+  const Kernel kern = kernel();
+  if (tiles(kern)) {
+    const ptrdiff_t lda = static_cast<ptrdiff_t>(a_row_elems(k));
+    const amx::ATiles at{a, amx::kTileRows * lda, 2 * amx::kTilePairs, lda * ptrdiff_t(sizeof(bf16_t))};
+    return amx::gemm(at, rows, padded_pairs(k, kern), b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
+  }
   gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, accumulate);
 }
 
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
              bool accumulate) {
+  const Kernel kern = kernel();
+  if (tiles(kern)) {
+    const int kp = padded_pairs(k, kern);
+    constexpr ptrdiff_t kTileElems = amx::kTileRows * 2 * amx::kTilePairs;
+    const amx::ATiles a{at, kp / amx::kTilePairs * kTileElems, kTileElems, 2 * amx::kTilePairs * 2};
+    return amx::gemm(a, rows, kp, b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
+  }
   gemm_avx512(at, {1, transposed_rows(rows)}, rows, k, b, n, c, ldc, accumulate);
 }
 
 void gemm_reference(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
                     bool accumulate) {
   const int k2 = pairs(k);
+  const int kp = padded_pairs(k, kernel());
+  const ptrdiff_t lda = static_cast<ptrdiff_t>(a_row_elems(k));
   for (int m = 0; m < rows; ++m)
     for (int j = 0; j < n; ++j) {
       const int n0 = j / kPanel * kPanel;
-      const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * k2;
+      const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * kp;
       float acc = accumulate ? c[m * ldc + j] : 0.0f;
       for (int p = 0; p < k2; ++p) {
         const bf16_t* bp = panel + (static_cast<ptrdiff_t>(p) * panel_width(n, n0) + (j - n0)) * 2;
-        const bf16_t* ap = a + static_cast<ptrdiff_t>(m) * 2 * k2 + 2 * p;
+        const bf16_t* ap = a + m * lda + 2 * p;
         acc = flush(std::fma(flush(to_float(ap[1])), flush(to_float(bp[1])), acc));
         acc = flush(std::fma(flush(to_float(ap[0])), flush(to_float(bp[0])), acc));
       }

@@ -1,17 +1,20 @@
 // Mixed-precision matrix products: bfloat16 operands (float rounded to nearest even), float accumulation,
-// float results, on AVX512-BF16's vdpbf16ps (chosen at run time: this code is compiled for the CPU's
-// extension by function attributes, so the library itself still runs on any CPU of its build's instruction
-// set; callers check available() first).
+// float results. Two kernels, chosen at run time (kernel()): AMX-BF16 tiles where the CPU has them and
+// AVX512-BF16's vdpbf16ps otherwise. This code is compiled for the CPU's extensions by function attributes
+// and inline assembly, so the library itself still runs on any CPU of its build's instruction set; callers
+// check available() first.
 //
-// Data layout:
-// - A (the left operand) is bf16 row-major with its k padded to an even count (k2 = pairs, a row is 2 * k2
-//   elements, the last one 0 when k is odd): each vdpbf16ps takes one pair of a row (a 32-bit broadcast).
+// Data layout (k2 = k's pairs, kp = k2 padded to the kernel's pair block: 1 for vdpbf16ps, 16 for AMX):
+// - A (the left operand) is bf16 row-major, a row a_row_elems(k) = 2 kp elements (zeros past k): each
+//   vdpbf16ps takes one pair of a row (a 32-bit broadcast), each AMX tile 16 pairs of 16 rows. For AMX the
+//   rows are padded (with zero rows) to a multiple of 16, a_elems counts them.
 // - B (the right operand) is packed into panels of kPanel = 64 columns (the last panel zero-padded to a
-//   multiple of 16); within a panel, k pair p holds, for each column n, (b[2p, n], b[2p + 1, n]): four
-//   vectors of 16 columns x 2.
-// - C[m, n] = (accumulate ? C[m, n] : 0) + sum over pairs p in order of
-//   (a[m, 2p] b[2p, n] + a[m, 2p + 1] b[2p + 1, n]), as vdpbf16ps computes it. Each element is one chain
-//   over k in order, whatever the number of rows: a row's result does not depend on the rows beside it.
+//   multiple of 16); within a panel, k pair p (p < kp, zeros past k) holds, for each column n,
+//   (b[2p, n], b[2p + 1, n]): four vectors of 16 columns x 2, and 16 such pairs are one AMX B tile.
+// - C[m, n] = (accumulate ? C[m, n] : 0) + sum over pairs p in order of the pair's two products: the odd
+//   element's then the even one's for vdpbf16ps, the even one's then the odd one's for AMX, each added with
+//   one rounding. Each element is one chain over k in order, whatever the number of rows: a row's result
+//   does not depend on the rows beside it (and so not on the thread count).
 //
 // Nothing here allocates; the per-thread scratch of the float-level helpers in layers.cpp grows to its
 // largest shape once.
@@ -30,25 +33,41 @@ inline constexpr int kVecCols = 16;  // columns per vector
 // True when this CPU runs the kernels (AVX512-BF16 and the vector state enabled by the OS).
 bool available();
 
+// The product kernels. kAmxEmulated is the AMX kernel's exact arithmetic on scalar code: it checks the AMX
+// layouts on any CPU with AVX512-BF16 (tests only; slow).
+enum class Kernel { kAvx512Bf16, kAmx, kAmxEmulated };
+// "avx512-bf16", "amx", "amx-emulated".
+const char* kernel_name(Kernel k);
+// True when this CPU and OS run AMX-BF16 tiles (cpuid, XCR0, and Linux's permission for the tile state).
+bool amx_available();
+// The kernel in use: AMX where amx_available(), else AVX512-BF16. The environment variable
+// HNS_BF16_KERNEL=avx512-bf16 or amx chooses one (to compare them on one machine); read once, and an unknown
+// value or amx without AMX throws std::invalid_argument naming it.
+Kernel kernel();
+// Switch kernels (tests and benchmarks). The layouts below depend on the kernel: convert and pack again
+// after a switch. Throws std::invalid_argument for a kernel this CPU cannot run.
+void set_kernel(Kernel k);
+
 // Float to bf16, round to nearest even (NaN stays NaN), and back (exact).
 bf16_t from_float(float x);
 float to_float(bf16_t x);
 
 // Elements of a packed B of k rows and n columns.
 size_t packed_elems(int k, int n);
-// Elements of an A of `rows` rows and k columns (k padded to even).
-inline size_t a_elems(int rows, int k) {
-  return static_cast<size_t>(rows) * static_cast<size_t>((k + 1) / 2 * 2);
-}
+// Elements of one row of A of k columns (2 kp), and of an A of `rows` rows (rows padded for AMX).
+size_t a_row_elems(int k);
+size_t a_elems(int rows, int k);
 
 // B [k, n] from float w: b = w (w [k, n], row stride ldw) or, with transpose, b = w^T (w [n, k]). A
 // col_map reorders w's columns first: b[i, j] = w[i, col_map[j]], or w[j, col_map[i]] transposed.
 void pack_b(const float* w, ptrdiff_t ldw, int k, int n, bool transpose, const int* col_map, bf16_t* out);
 // A [rows, k] from float x (row stride ldx).
 void convert_a(const float* x, ptrdiff_t ldx, int rows, int k, bf16_t* out);
-// A = x^T for x [k, rows] (row stride ldx), in the pair-major layout gemm_at reads: pair p of A's row m is
-// the dword at p * ldm + m (ldm = rows rounded up to 16), i.e. x's rows 2p and 2p + 1 interleaved, written
-// with whole-vector stores (no transposition). at_elems of them.
+// A = x^T for x [k, rows] (row stride ldx), in the layout gemm_at reads, at_elems of them. For vdpbf16ps
+// pair-major: pair p of A's row m is the dword at p * ldm + m (ldm = rows rounded up to 16), i.e. x's rows
+// 2p and 2p + 1 interleaved, written with whole-vector stores (no transposition). For AMX whole tiles: the
+// tile of rows [16 i, 16 i + 16) and pairs [16 j, 16 j + 16) is 512 consecutive elements at
+// (i * kp / 16 + j) * 512, row by row (16 pairs of x's columns transposed), zeros past rows and k.
 size_t at_elems(int rows, int k);
 void convert_a_transposed(const float* x, ptrdiff_t ldx, int k, int rows, bf16_t* out);
 // B [k, n] from float activations (row stride ldx), packed as pack_b without transpose.
@@ -62,9 +81,9 @@ void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, pt
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
              bool accumulate);
 
-// The scalar reference of gemm: the same rounding of the operands and the same pair order per element
-// (fmaf of the odd element of a pair, then of the even one; denormal products and sums flushed to zero as
-// vdpbf16ps does). Used by the tests.
+// The scalar reference of the vdpbf16ps kernel: the same rounding of the operands and the same pair order
+// per element (fmaf of the odd element of a pair, then of the even one; denormal products and sums flushed
+// to zero as vdpbf16ps does). Reads the current kernel's layouts. Used by the tests.
 void gemm_reference(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
                     bool accumulate);
 

@@ -6,20 +6,6 @@
 #include "nn/kernels.hpp"
 
 namespace hns::nn {
-namespace {
-
-// CPUID leaf 7 subleaf 1, EAX bit 5: AVX512_BF16 (reported by __builtin_cpu_supports too); leaf 7 subleaf 0,
-// EDX bit 22: AMX-BF16.
-bool cpu_has_amx_bf16() {
-  unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  __asm__ volatile("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(0));
-  if (eax < 7) return false;
-  __asm__ volatile("cpuid" : "=a"(eax), "=b"(ebx), "=c"(ecx), "=d"(edx) : "a"(7), "c"(0));
-  return (edx >> 22) & 1u;
-}
-
-}  // namespace
-
 std::string_view precision_name(Precision p) {
   return p == Precision::kBf16 ? "bf16" : "fp32";
 }
@@ -27,7 +13,7 @@ std::string_view precision_name(Precision p) {
 CpuFeatures CpuFeatures::detect() {
   CpuFeatures f;
   f.avx512_bf16 = bf16::available();
-  f.amx_bf16 = cpu_has_amx_bf16();
+  f.amx_bf16 = bf16::amx_available();
   return f;
 }
 
@@ -37,7 +23,11 @@ std::vector<std::string> precision_names() {
 
 Precision resolve_precision(std::string_view requested, const CpuFeatures& cpu) {
   if (requested == "fp32") return Precision::kFp32;
-  if (requested == "auto") return cpu.avx512_bf16 ? Precision::kBf16 : Precision::kFp32;
+  if (requested == "auto") {
+    if (!cpu.avx512_bf16) return Precision::kFp32;
+    if (bf16::available()) bf16::kernel();  // an unusable HNS_BF16_KERNEL is refused here
+    return Precision::kBf16;
+  }
   if (requested == "bf16") {
     if (!cpu.avx512_bf16) {
       throw std::invalid_argument(
@@ -45,13 +35,23 @@ Precision resolve_precision(std::string_view requested, const CpuFeatures& cpu) 
           "Sapphire Rapids or later), and this one does not have it (bf16 is not emulated): use precision "
           "fp32 or auto");
     }
+    if (bf16::available()) bf16::kernel();  // an unusable HNS_BF16_KERNEL is refused here
     return Precision::kBf16;
   }
   throw std::invalid_argument("precision '" + std::string(requested) + "' is not one of fp32, bf16, auto");
 }
 
 std::string precision_description(Precision p) {
-  if (p == Precision::kBf16) return "bf16 (bf16 operands, float accumulation: AVX512-BF16 vdpbf16ps)";
+  if (p == Precision::kBf16) {
+    switch (bf16::kernel()) {
+      case bf16::Kernel::kAmx:
+        return "bf16 (bf16 operands, float accumulation: AMX-BF16 tiles)";
+      case bf16::Kernel::kAmxEmulated:
+        return "bf16 (bf16 operands, float accumulation: AMX-BF16 tiles, emulated)";
+      default:
+        return "bf16 (bf16 operands, float accumulation: AVX512-BF16 vdpbf16ps)";
+    }
+  }
   return "fp32 (" + kernels::isa_description() + ")";
 }
 

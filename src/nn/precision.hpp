@@ -9,7 +9,9 @@
 //         their bf16 copies are packed once per weight version (per act() and per minibatch). Layer norms,
 //         softmax, the attention core, the LSTM cell, the lidar convolution, the loss, Adam and every
 //         reduction stay float. Needs a CPU with a native bf16 dot product (AVX512-BF16: AMD Zen 4 and later,
-//         Intel Cooper Lake, Sapphire Rapids and later); it is never emulated.
+//         Intel Cooper Lake, Sapphire Rapids and later); it is never emulated. Where the CPU has AMX-BF16
+//         tiles (Intel Sapphire Rapids and later) the products run on them, else on vdpbf16ps
+//         (bf16::kernel()); the two differ in rounding, so results are bit-identical per kernel.
 //   auto  bf16 where the CPU has it, else fp32.
 //
 // Within one precision and one build (instruction set), results are bit-identical at any thread or rank
@@ -31,7 +33,7 @@ std::string_view precision_name(Precision p);
 // state).
 struct CpuFeatures {
   bool avx512_bf16 = false;  // vdpbf16ps (AVX512-BF16 with AVX512F/BW/VL)
-  bool amx_bf16 = false;     // AMX-BF16 tiles (reported only; hns has no AMX kernel yet)
+  bool amx_bf16 = false;     // AMX-BF16 tiles usable (bf16 products then run on them)
   static CpuFeatures detect();
 };
 

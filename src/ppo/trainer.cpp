@@ -12,6 +12,7 @@
 #include <cstring>
 #include <limits>
 
+#include "nn/bf16_gemm.hpp"
 #include "physics/rng.hpp"
 #include "ppo/obs_arrays.hpp"
 #include "ppo/ppo_loss.hpp"
@@ -114,6 +115,9 @@ std::string IterationMetrics::to_json() const {
   };
   add("iteration", "%lld", static_cast<long long>(iteration));
   if (!precision.empty()) out += ", \"precision\": \"" + precision + "\"";
+  // The bf16 products' kernel (AMX tiles or vdpbf16ps): the two round differently.
+  if (precision == "bf16")
+    out += ", \"bf16_kernel\": \"" + std::string(nn::bf16::kernel_name(nn::bf16::kernel())) + "\"";
   add("agent_steps", "%lld", static_cast<long long>(agent_steps));
   add("env_steps", "%lld", static_cast<long long>(env_steps));
   add("seconds", "%.4f", seconds);

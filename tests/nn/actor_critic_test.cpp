@@ -88,20 +88,44 @@ ObsNormalizer fitted_normalizer(const ObsShape& s, const ObsData& d, int rows) {
   return n;
 }
 
-// The tests below run for both precisions of the products (bf16 where this CPU has it).
-class NnNetworkPrecision : public ::testing::TestWithParam<Precision> {
+// The tests below run for both precisions of the products, bf16 on each of its kernels this CPU runs
+// (vdpbf16ps, AMX tiles, and the AMX kernel's emulation, which checks the AMX layouts anywhere).
+struct ProductPath {
+  Precision precision;
+  bf16::Kernel kernel;
+  const char* name;
+};
+void PrintTo(const ProductPath& p, std::ostream* os) {
+  *os << p.name;
+}
+class NnNetworkPrecision : public ::testing::TestWithParam<ProductPath> {
  protected:
   void SetUp() override {
-    if (GetParam() == Precision::kBf16 && !bf16::available())
-      GTEST_SKIP() << "this CPU has no AVX512-BF16: bf16 products cannot run here";
+    if (precision() == Precision::kFp32) return;
+    if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16: bf16 products cannot run here";
+    if (GetParam().kernel == bf16::Kernel::kAmx && !bf16::amx_available())
+      GTEST_SKIP() << "this CPU has no AMX-BF16 tiles";
+    saved_ = bf16::kernel();
+    bf16::set_kernel(GetParam().kernel);
+    switched_ = true;
   }
-  void use(ActorCritic& ac) const { ac.set_precision(GetParam()); }
+  void TearDown() override {
+    if (switched_) bf16::set_kernel(saved_);
+  }
+  Precision precision() const { return GetParam().precision; }
+  void use(ActorCritic& ac) const { ac.set_precision(precision()); }
+
+ private:
+  bf16::Kernel saved_ = bf16::Kernel::kAvx512Bf16;
+  bool switched_ = false;
 };
 INSTANTIATE_TEST_SUITE_P(Precisions, NnNetworkPrecision,
-                         ::testing::Values(Precision::kFp32, Precision::kBf16),
-                         [](const ::testing::TestParamInfo<Precision>& info) {
-                           return std::string(precision_name(info.param));
-                         });
+                         ::testing::Values(ProductPath{Precision::kFp32, bf16::Kernel::kAvx512Bf16, "fp32"},
+                                           ProductPath{Precision::kBf16, bf16::Kernel::kAvx512Bf16, "bf16"},
+                                           ProductPath{Precision::kBf16, bf16::Kernel::kAmx, "bf16_amx"},
+                                           ProductPath{Precision::kBf16, bf16::Kernel::kAmxEmulated,
+                                                       "bf16_amx_emulated"}),
+                         [](const ::testing::TestParamInfo<ProductPath>& info) { return info.param.name; });
 
 bool same_bits(const float* a, const float* b, size_t n) {
   return std::memcmp(a, b, n * sizeof(float)) == 0;
@@ -193,7 +217,7 @@ TEST_P(NnNetworkPrecision, EndToEndGradientMatchesFiniteDifferences) {
   ActorCritic analytic_net(cfg, par);  // the same parameters at the precision under test
   std::copy_n(ac.params().values(), ac.params().buffer_floats(), analytic_net.params().values());
   use(analytic_net);
-  const bool bf16 = GetParam() == Precision::kBf16;
+  const bool bf16 = precision() == Precision::kBf16;
   const int seqs = 4, steps = 3, rows = seqs * steps;
   const ObsData data(cfg.obs, rows, 100);
   const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
@@ -238,8 +262,7 @@ TEST_P(NnNetworkPrecision, EndToEndGradientMatchesFiniteDifferences) {
   }
   EXPECT_LT(std::sqrt(total_err2), (bf16 ? 0.03 : 0.005) * std::sqrt(total_ref2));
   std::printf("gradient vs float finite differences (%s): relative error %.4f over %d slices\n",
-              std::string(precision_name(GetParam())).c_str(), std::sqrt(total_err2 / total_ref2),
-              slices_checked);
+              GetParam().name, std::sqrt(total_err2 / total_ref2), slices_checked);
   EXPECT_GT(slices_checked, 50);
   EXPECT_LT(skipped, coords / 10);
   EXPECT_GT(slices_checked, 40);

@@ -1,0 +1,45 @@
+// The AMX-BF16 tile product behind bf16::gemm and bf16::gemm_at (nn/bf16_gemm.hpp chooses it). Internal to
+// hns_nn: callers use bf16_gemm.hpp.
+//
+// A tile is 16 rows of 64 bytes (16 floats, or 16 pairs of bf16). TDPBF16PS adds to a 16 x 16 float tile C
+// the products of an A tile (16 rows of C x 16 pairs of k) and a B tile (16 pairs of k x 16 columns, each
+// row the pairs (b[2p, n], b[2p + 1, n]) of 16 columns: exactly one k pair of a packed B panel). Per element
+// of C the sum runs over k in pair order; this file takes, per pair, the even element's product and then
+// the odd one's, each added with one rounding, as Intel documents TDPBF16PS (the emulation does exactly
+// that; the tests state how close the hardware is).
+//
+// Everything the kernel reads is padded, so it never needs a partial tile: k to whole blocks of 16 pairs
+// (zeros in A and B), A's rows to whole blocks of 16. C's partial blocks (rows or columns past the edge)
+// go through a 16 x 16 scratch tile, so nothing outside C is read or written.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace hns::nn::bf16::amx {
+
+using bf16_t = uint16_t;
+
+inline constexpr int kTileRows = 16;   // rows of a tile (of C and A)
+inline constexpr int kTilePairs = 16;  // k pairs per A and B tile
+
+// True when this CPU has AMX-TILE and AMX-BF16, the OS saves the tile state (XCR0) and Linux granted this
+// process the tile data (arch_prctl ARCH_REQ_XCOMP_PERM, asked once).
+bool hardware_available();
+
+// Where A's tiles lie: the tile of row block rb and pair block pb starts at base + rb * row_block +
+// pb * pair_block (in bf16 elements); its rows are stride_bytes apart.
+struct ATiles {
+  const bf16_t* base;
+  ptrdiff_t row_block;
+  ptrdiff_t pair_block;
+  ptrdiff_t stride_bytes;
+};
+
+// C [rows, n] (row stride ldc) (+)= A B: A as `a` says (row blocks of 16 covering rows), B packed in panels
+// of 64 columns with kp pairs (a multiple of 16) per panel (bf16_gemm.hpp's layout). emulate: the same
+// arithmetic in scalar code on any CPU (tests of the layouts on machines without AMX).
+void gemm(const ATiles& a, int rows, int kp, const bf16_t* b, int n, float* c, ptrdiff_t ldc, bool accumulate,
+          bool emulate);
+
+}  // namespace hns::nn::bf16::amx
