@@ -14,8 +14,11 @@ int usable_threads(int requested);
 // Bytes the machine has available for new work (MemAvailable of /proc/meminfo, else free physical pages).
 size_t available_memory_bytes();
 
-// Refuses (physics::ConfigError) work whose estimated memory exceeds what the machine has available,
-// naming `what` (e.g. "--envs 100000") and both figures.
+// Address space this process may still map under its RLIMIT_AS (ulimit -v); SIZE_MAX without a limit.
+size_t address_space_left_bytes();
+
+// Refuses (physics::ConfigError) work whose estimated memory exceeds what the machine has available, or
+// what the address-space limit leaves, naming `what` (e.g. "--envs 100000") and both figures.
 void check_memory(const std::string& what, size_t bytes);
 
 }  // namespace hns::batch

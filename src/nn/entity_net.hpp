@@ -147,6 +147,13 @@ class EntityNet {
   int out_width() const { return cfg_.lstm > 0 ? cfg_.lstm : cfg_.dense; }
   // Workspace for chunks of up to `sequences` sequences of `steps` steps.
   Work make_workspace(int sequences, int steps) const { return Work(cfg_, num_outputs(), sequences, steps); }
+  // Floats such a workspace holds (counted without allocating): what memory estimates are built from.
+  size_t workspace_floats(int sequences, int steps) const {
+    Buffers b(cfg_, num_outputs(), sequences, steps);
+    Arena counter;
+    b.bind(counter);
+    return counter.used();
+  }
   // Multiply-add flops of one forward pass over `rows` agent-steps (GEMMs, conv and attention products);
   // a backward pass is counted as twice that.
   double forward_flops(int rows) const;

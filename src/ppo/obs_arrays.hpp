@@ -49,6 +49,14 @@ struct ObsArrays {
   nn::FloatBuffer agents_present, boxes_present, ramps_present, sites_present;
   nn::FloatBuffer reset;
 
+  // Floats per row over all the arrays (what allocate takes per row).
+  static size_t floats_per_row(const nn::ObsShape& s) {
+    const size_t na = s.num_other_agents();
+    const size_t entities = na + size_t(s.max_boxes) + size_t(s.max_ramps) + size_t(s.max_sites);
+    return size_t(s.self_features) + size_t(s.lidar_rays) + na * s.agent_features +
+           size_t(s.max_boxes) * s.box_features + size_t(s.max_ramps) * s.ramp_features +
+           size_t(s.max_sites) * s.site_features + 2 * entities + 1;
+  }
   void allocate(const nn::ObsShape& s, size_t rows) {
     const size_t na = s.num_other_agents();
     self.resize(rows * s.self_features);

@@ -12,10 +12,12 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
+#include "batch/host.hpp"
 #include "nn/actor_critic.hpp"
 #include "nn/entity_net.hpp"
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
+#include "ppo/obs_arrays.hpp"
 
 namespace hns::ppo {
 
@@ -510,29 +512,51 @@ int TrainConfig::envs_per_rank(int ranks) const {
 }
 
 size_t TrainConfig::estimated_bytes(int ranks) const {
+  // The sum of what one rank allocates, from the sizes of its buffers, times a margin for the allocator,
+  // the heap's fragmentation and the buffers too small to list; then the process's fixed part (code, shared
+  // libraries, thread stacks). Checked against the measured peak resident memory of scenes, models, env
+  // counts and horizon/bptt extremes (tests/tools/memory_estimate_test.sh; docs/training.md "Memory").
+  constexpr double kMargin = 1.25;
+  constexpr size_t kFixedBytes = size_t(48) << 20;
   const int rank_envs = envs_per_rank(ranks);
   batch::BatchConfig bc;
   bc.world = world();
   bc.num_envs = rank_envs;
   const batch::Layout L = batch::Layout::of(bc);
-  // Per buffer row and entity (other agents, boxes, ramps, sites, self) the buffers and activations of both
-  // networks take about 0.7 KB (small) or 1.85 KB (paper), on a fixed 70 MB or 165 MB (code, networks,
-  // optimiser, thread pools): measured resident memory of 8 and 32 quadrant envs.
-  // The fixed part held 16 gradient groups of 4 bytes per parameter then; the config's count replaces them.
-  const bool paper = model == "paper";
-  const size_t base = (paper ? 165u : 70u) << 20;
-  const size_t per_entity_row = paper ? 1850 : 700;
-  const size_t rows = size_t(rollout_steps()) * size_t(rank_envs) * size_t(L.max_agents);
-  const size_t entities = size_t(L.others + L.max_boxes + L.max_ramps + L.max_sites + 1);
   nn::NetConfig net = nn::net_preset(model);
-  net.obs.max_sites = L.max_sites;
-  net.obs.site_features = L.max_sites > 0 ? L.site_features : 0;
+  net.obs = obs_shape(L);
   nn::ParamLayout layout;
-  nn::EntityNet(net, nn::NetHead::kPolicy, layout, "policy");
-  nn::EntityNet(net, nn::NetHead::kValue, layout, "value");
-  const size_t group_bytes = layout.num_params() * sizeof(float);
-  return base - 16 * group_bytes + size_t(grad_groups) * group_bytes + bc.estimated_bytes() +
-         rows * entities * per_entity_row;
+  const nn::EntityNet policy(net, nn::NetHead::kPolicy, layout, "policy");
+  const nn::EntityNet value(net, nn::NetHead::kValue, layout, "value");
+  const nn::ParallelConfig par;
+  const size_t params = layout.num_params();
+  const size_t T = size_t(rollout_steps()), G = size_t(rank_envs) * size_t(L.max_agents), rows = T * G;
+  const size_t threads_used = size_t(std::max(1, batch::usable_threads(threads)));
+  const size_t heads = net.action_heads.size();
+
+  size_t floats = 0;
+  // Rollout: observations, actions, the per-row targets and flags, the LSTM states entering each chunk, and
+  // the minibatch's gathered copies (at most the rollout again for the per-row targets).
+  floats += rows * (ObsArrays::floats_per_row(net.obs) + heads + 7 + 1 + 8);
+  const size_t state_width = 2 * size_t(net.lstm);
+  floats += 2 * 2 * (T / size_t(bptt)) * G * state_width;
+  // Networks: values, gradient, Adam's two moments, the gradient groups, and the packed weights (bf16 with
+  // their transposes, or the LSTMs' packed recurrent weights: at most one float per parameter).
+  floats += params * (4 + size_t(grad_groups) + 1);
+  if (intrinsic == "rnd") floats += 8 * params;  // two more networks, and their optimiser
+  // Per thread: the training chunk's activations of both networks (train_chunk_sequences x bptt rows) with
+  // the bf16 operand scratch (a quarter of them at most), and the inference chunk's (infer_chunk_agents x 1).
+  // (Each thread's training workspace is sized for a whole chunk of train_chunk_sequences sequences.)
+  const size_t train_ws = policy.workspace_floats(par.train_chunk_sequences, bptt) +
+                          value.workspace_floats(par.train_chunk_sequences, bptt);
+  const size_t infer_ws =
+      policy.workspace_floats(par.infer_chunk_agents, 1) + value.workspace_floats(par.infer_chunk_agents, 1);
+  // Training runs one task per update block (gradient group), so at most that many threads hold a training
+  // workspace.
+  const size_t train_threads = std::min(threads_used, size_t(std::max(1, update_blocks())));
+  floats += train_threads * (train_ws + (precision == "fp32" ? 0 : train_ws / 4)) + threads_used * infer_ws;
+  const double bytes = (double(floats) * sizeof(float) + double(bc.estimated_bytes())) * kMargin;
+  return size_t(bytes) + kFixedBytes;
 }
 
 void TrainConfig::validate() const {

@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# hns train's memory estimate (docs/training.md "Memory") against the peak resident memory the run really
+# reaches: never below it (a short machine must get exit 2, not an out-of-memory kill) and not far above it
+# (a machine that has the memory must not be refused), for scenes, models and the horizon/bptt extreme; and an
+# address-space limit (ulimit -v) too small for the run is refused with exit 2 before any work.
+# Usage: memory_estimate_test.sh path/to/hns
+set -u
+hns="$1"
+tmp="$(mktemp -d)"
+trap 'rm -rf "$tmp"' EXIT
+passed=0
+failed=0
+fail() {
+  failed=$((failed + 1))
+  echo "FAIL: $*"
+}
+
+# check NAME ARGS...: one iteration; estimate (MiB, from the start line) >= peak and <= 2.5 peak + 64.
+check() {
+  local name="$1"
+  shift
+  local peak
+  peak="$(python3 - "$hns" "$tmp/out" "$@" <<'PY'
+import resource, subprocess, sys
+hns, out, args = sys.argv[1], sys.argv[2], sys.argv[3:]
+r = subprocess.run([hns, "train", *args, "--iterations", "1", "--threads", "2", "--out", out, "--overwrite"],
+                   capture_output=True, text=True)
+open(out + ".log", "w").write(r.stdout + r.stderr)
+print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss // 1024 if r.returncode == 0 else -1)
+PY
+)"
+  local est
+  est="$(grep -o 'about [0-9]* MiB estimated' "$tmp/out.log" | grep -o '[0-9]*')"
+  if [ "$peak" -lt 0 ] || [ -z "$est" ]; then
+    fail "$name: the run failed"
+    cat "$tmp/out.log"
+    return
+  fi
+  echo "$name: estimated $est MiB, peak $peak MiB"
+  if [ "$est" -lt "$peak" ]; then
+    fail "$name: estimate $est MiB is below the peak $peak MiB"
+  elif [ "$est" -gt $((peak * 5 / 2 + 64)) ]; then
+    fail "$name: estimate $est MiB is far above the peak $peak MiB"
+  else
+    passed=$((passed + 1))
+  fi
+}
+
+check "quadrant small 8 envs" --scene quadrant --model small --envs 8
+check "full small 8 envs" --scene full --model small --envs 8
+check "quadrant paper 4 envs" --scene quadrant --model paper --envs 4
+check "quadrant small 4 envs, horizon = bptt = 400" --scene quadrant --model small --envs 4 --set horizon=400 \
+  --set bptt=400
+
+# An address-space limit below the estimate: exit 2 naming the limit, nothing trained.
+out="$( (ulimit -v 400000 && "$hns" train --scene quadrant --model paper --envs 4 --set horizon=1000 \
+  --set bptt=1000 --iterations 1 --threads 2 --out "$tmp/as") 2>&1)"
+rc=$?
+if [ "$rc" -eq 2 ] && grep -q "ulimit -v" <<<"$out" && [ ! -e "$tmp/as/checkpoint.bin" ]; then
+  passed=$((passed + 1))
+else
+  fail "ulimit -v below the estimate: exit $rc, output: $out"
+fi
+
+echo "memory estimate: $passed passed, $failed failed"
+[ "$failed" -eq 0 ]
