@@ -79,5 +79,7 @@ using batch::check_memory;
 using batch::usable_threads;
 // "T threads" or, when the machine has fewer, "T threads requested, U available: U used".
 std::string threads_text(int requested);
+// "1 env", "2 envs": n and the noun, plural unless n is 1 (plural_noun: noun + "s" when not given).
+std::string count_text(long long n, const std::string& noun, const std::string& plural_noun = "");
 
 }  // namespace hns::tools

@@ -140,6 +140,10 @@ uint64_t parse_seed(const std::string& flag, const std::string& text) {
   return value;
 }
 
+std::string count_text(long long n, const std::string& noun, const std::string& plural_noun) {
+  return std::to_string(n) + " " + (n == 1 ? noun : plural_noun.empty() ? noun + "s" : plural_noun);
+}
+
 std::string threads_text(int requested) {
   const int used = usable_threads(requested);
   if (requested > used) {

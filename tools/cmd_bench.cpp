@@ -71,8 +71,10 @@ int run_bench(const BenchOptions& opt) {
                             " steps is invalid: a profiled run may record at most " +
                             std::to_string(kMaxProfileEvents / 4) + " env-steps; use fewer --steps");
   }
-  std::printf("hns bench: scene %s, %d envs x %d steps, %s, %d substeps\n", opt.scene.c_str(), opt.envs,
-              opt.steps, threads_text(opt.threads).c_str(), config.world.physics.substeps);
+  std::printf("hns bench: scene %s, %s x %s, %s, %s\n", opt.scene.c_str(),
+              count_text(opt.envs, "env").c_str(), count_text(opt.steps, "step").c_str(),
+              threads_text(opt.threads).c_str(),
+              count_text(config.world.physics.substeps, "substep").c_str());
   std::fflush(stdout);
   hns::batch::BatchSim sim(config);
   sim.set_tracing(!opt.profile.empty());

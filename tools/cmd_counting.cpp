@@ -134,8 +134,10 @@ int run_counting(const CountingOptions& opt) {
   for (const Condition& c : conditions)
     if (!c.checkpoint.empty())
       settings["pretrained"][c.label] = {{"path", c.checkpoint}, {"fnv1a64", c.fingerprint}};
-  std::printf("hns counting: %zu conditions x %d seeds, %d + %d episodes each (model %s, %s)\n",
-              conditions.size(), opt.seeds, opt.train_episodes, opt.test_episodes, opt.model.c_str(),
+  std::printf("hns counting: %s x %s, %d + %s each (model %s, %s)\n",
+              count_text(static_cast<long long>(conditions.size()), "condition").c_str(),
+              count_text(opt.seeds, "seed").c_str(), opt.train_episodes,
+              count_text(opt.test_episodes, "episode").c_str(), opt.model.c_str(),
               threads_text(opt.threads).c_str());
   std::vector<Run> runs;
   for (const Condition& c : conditions) {

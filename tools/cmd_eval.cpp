@@ -477,17 +477,18 @@ int run_eval(const EvalOptions& opt) {
     write_atomically((dir / "eval.html").string(), page_html(s, settings));
   };
 
-  std::printf(
-      "hns eval: %zu tasks x %zu conditions x %d seeds, %d iterations of %d envs each (model %s, %s)\n",
-      s.tasks.size(), s.conditions.size(), opt.seeds, opt.iterations, opt.envs, opt.model.c_str(),
-      threads_text(opt.threads).c_str());
+  std::printf("hns eval: %s x %s x %s, %s of %s each (model %s, %s)\n",
+              count_text(static_cast<long long>(s.tasks.size()), "task").c_str(),
+              count_text(static_cast<long long>(s.conditions.size()), "condition").c_str(),
+              count_text(opt.seeds, "seed").c_str(), count_text(opt.iterations, "iteration").c_str(),
+              count_text(opt.envs, "env").c_str(), opt.model.c_str(), threads_text(opt.threads).c_str());
   for (const std::string& t : s.tasks) {
     if (s.random.count(t)) continue;
     ppo::TrainConfig c = base;
     c.scene = t;
     s.random[t] = ppo::random_policy_return(c, opt.random_episodes);
-    std::printf("  %s: random policy return %.3f (%d episodes)\n", t.c_str(), s.random[t],
-                opt.random_episodes);
+    std::printf("  %s: random policy return %.3f (%s)\n", t.c_str(), s.random[t],
+                count_text(opt.random_episodes, "episode").c_str());
     std::fflush(stdout);
     write_all();
   }

@@ -77,11 +77,11 @@ int run_play(const PlayOptions& opt) {
       record_episodes(config, play_actions(policy.get(), opt.seed), [&](const TrajectoryEpisode& ep) {
         writer.add(ep);
         std::printf(
-            "  env %d episode %d: %d hider%s v %d seeker%s, %d boxes (%d elongated), %d ramp%s, %d frames, "
-            "returns hiders %+.1f seekers %+.1f\n",
-            ep.env, ep.episode, ep.num_hiders, ep.num_hiders == 1 ? "" : "s", ep.num_seekers,
-            ep.num_seekers == 1 ? "" : "s", ep.num_boxes, ep.num_elongated, ep.num_ramps,
-            ep.num_ramps == 1 ? "" : "s", ep.frames, ep.hider_return, ep.seeker_return);
+            "  env %d episode %d: %s v %s, %s (%d elongated), %s, %s, returns hiders %+.1f seekers %+.1f\n",
+            ep.env, ep.episode, count_text(ep.num_hiders, "hider").c_str(),
+            count_text(ep.num_seekers, "seeker").c_str(), count_text(ep.num_boxes, "box", "boxes").c_str(),
+            ep.num_elongated, count_text(ep.num_ramps, "ramp").c_str(),
+            count_text(ep.frames, "frame").c_str(), ep.hider_return, ep.seeker_return);
         std::fflush(stdout);
       });
   const uint64_t bytes = writer.finish();

@@ -16,6 +16,7 @@
 #include <optional>
 #include <sstream>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "batch/host.hpp"
@@ -25,6 +26,7 @@
 #endif
 #include "nn/kernels.hpp"
 #include "nn/precision.hpp"
+#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/policy.hpp"
@@ -401,20 +403,27 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
 
   const batch::Layout& L = trainer.sim().layout();
-  const std::string update =
-      cfg.minibatch_chunks > 0 ? "minibatches of at most " + std::to_string(cfg.minibatch_chunks) + " chunks"
-                               : std::to_string(cfg.minibatches) + " minibatches";
+  const std::string update = cfg.minibatch_chunks > 0
+                                 ? "minibatches of at most " + count_text(cfg.minibatch_chunks, "chunk")
+                                 : count_text(cfg.minibatches, "minibatch", "minibatches");
   std::printf(
-      "hns train: scene %s, model %s (%zu parameters), %d envs x %d agent slots, %d steps per iteration, "
-      "%lld chunks of %d steps, %d epochs x %s, seed %llu, %s\n",
-      cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), cfg.envs, L.max_agents,
-      cfg.rollout_steps(), static_cast<long long>(cfg.buffer_chunks()), cfg.bptt, cfg.epochs, update.c_str(),
-      static_cast<unsigned long long>(cfg.seed), threads_text(cfg.threads).c_str());
+      "hns train: scene %s, model %s (%zu parameters), %s x %s, %s per iteration, %s of %s, %s x %s, "
+      "seed %llu, %s\n",
+      cfg.scene.c_str(), cfg.model.c_str(), trainer.net().num_params(), count_text(cfg.envs, "env").c_str(),
+      count_text(L.max_agents, "agent slot").c_str(), count_text(cfg.rollout_steps(), "step").c_str(),
+      count_text(cfg.buffer_chunks(), "chunk").c_str(), count_text(cfg.bptt, "step").c_str(),
+      count_text(cfg.epochs, "epoch").c_str(), update.c_str(), static_cast<unsigned long long>(cfg.seed),
+      threads_text(cfg.threads).c_str());
   std::printf("  memory: about %.0f MiB estimated%s, %.0f MiB available\n",
               double(cfg.estimated_bytes(comm.size())) / (1 << 20), comm.size() > 1 ? " per rank" : "",
               double(batch::available_memory_bytes()) / (1 << 20));
   std::printf("  instruction set: %s\n", nn::kernels::isa_description().c_str());
   std::printf("  precision: %s\n", nn::precision_description(trainer.net().precision()).c_str());
+  if (cfg.scene == "object-counting") {
+    std::fprintf(stderr,
+                 "hns train: warning: scene object-counting has no reward (it is the counting probe's scene: "
+                 "hns counting, docs/transfer.md); this run trains on returns that are always 0\n");
+  }
   if (comm.size() > 1) {
     std::printf("  %d ranks (MPI), %d update blocks; rank 0 steps envs [%d, %d)\n", comm.size(),
                 cfg.update_blocks(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs());
@@ -637,16 +646,28 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<TrainOptions>();
   CLI::App* sub = app.add_subcommand("train", "Train hide-and-seek agents with PPO self-play");
   sub->add_option("--config", opt->config_file, "Flat JSON config file (keys as in a run's config.json)");
-  sub->add_option("--scene", opt->scene,
-                  "quadrant | full | empty | lockbox | lock-and-return | sequential-lock | shelter");
-  sub->add_option("--model", opt->model, "small | paper");
-  sub->add_option("--iterations", opt->iterations, "Total iterations of the run");
-  sub->add_option("--seed", opt->seed, "Seed of worlds, initial weights and sampling, 0 .. 2^64 - 1");
-  sub->add_option("--threads", opt->threads, "TBB threads (0 = all); results do not depend on it");
-  sub->add_option("--envs", opt->envs, "Game instances stepped together");
+  const ppo::TrainConfig defaults;
+  std::string scenes;
+  for (const char* name : physics::kSceneNames) scenes += std::string(scenes.empty() ? "" : " | ") + name;
+  auto dflt = [](const auto& value) {
+    if constexpr (std::is_convertible_v<decltype(value), std::string>) {
+      return " (default " + std::string(value) + ")";
+    } else {
+      return " (default " + std::to_string(value) + ")";
+    }
+  };
+  sub->add_option("--scene", opt->scene, scenes + dflt(defaults.scene));
+  sub->add_option("--model", opt->model, "small | paper" + dflt(defaults.model));
+  sub->add_option("--iterations", opt->iterations, "Total iterations of the run" + dflt(defaults.iterations));
+  sub->add_option("--seed", opt->seed,
+                  "Seed of worlds, initial weights and sampling, 0 .. 2^64 - 1" + dflt(defaults.seed));
+  sub->add_option("--threads", opt->threads,
+                  "TBB threads (0 = all); results do not depend on it" + dflt(defaults.threads));
+  sub->add_option("--envs", opt->envs, "Game instances stepped together" + dflt(defaults.envs));
   sub->add_option("--precision", opt->precision,
                   "Matrix products: fp32 | bf16 (bf16 operands, float sums; needs AVX512-BF16) | auto (bf16 "
-                  "where the CPU has it); config.json records the one that runs");
+                  "where the CPU has it); config.json records the one that runs" +
+                      dflt(defaults.precision));
   sub->add_option("--set", opt->sets, "Any config key, KEY=VALUE (repeatable), e.g. --set epochs=2");
   sub->add_option("--out", opt->out, "Run folder (default runs/SCENE-MODEL-seedS)");
   sub->add_option("--resume", opt->resume, "Continue the run in this folder from its checkpoint");

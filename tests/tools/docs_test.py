@@ -1,0 +1,93 @@
+#!/usr/bin/env python3
+"""The docs name only what the program has: every `hns SUBCOMMAND` and every `--flag` of one written in the
+README or docs/*.md (in code spans and code blocks) exists in that subcommand's --help, every `--scene X` names a
+scene of the program, and every scene of the program (`hns train --help`, and hns.scenes where the Python
+package is built) is named in the README.
+
+Usage: docs_test.py path/to/hns REPO_ROOT [PYTHON_PACKAGE_DIR]
+"""
+import pathlib
+import re
+import subprocess
+import sys
+
+hns, root = sys.argv[1], pathlib.Path(sys.argv[2])
+package_dir = sys.argv[3] if len(sys.argv) > 3 else ""
+failures = []
+
+
+def help_text(*args):
+    return subprocess.run([hns, *args, "--help"], capture_output=True, text=True, timeout=60).stdout
+
+
+top = help_text()
+subcommands = re.findall(r"^  ([a-z]+)\s{2,}", top.split("Subcommands:", 1)[1], re.M)
+if not subcommands:
+    sys.exit("could not read the subcommands from hns --help:\n" + top)
+flags = {sub: set(re.findall(r"(--[a-z][a-z0-9-]*)", help_text(sub))) for sub in subcommands}
+scene_line = next(line for line in help_text("train").splitlines() if line.strip().startswith("--scene"))
+scenes = re.findall(r"[a-z][a-z-]+", scene_line.split("TEXT", 1)[1].split("(default", 1)[0])
+if len(scenes) < 4:
+    sys.exit("could not read the scenes from hns train --help: " + scene_line)
+
+docs = [root / "README.md", *sorted((root / "docs").glob("*.md"))]
+
+
+def code_of(text):
+    """Code spans and code blocks (fenced, or indented by 4 spaces after a blank line) of a Markdown text."""
+    out = []
+    in_fence = False
+    for line in text.splitlines():
+        if line.lstrip().startswith("```"):
+            in_fence = not in_fence
+            continue
+        if in_fence or line.startswith("    "):
+            out.append(line)
+        else:
+            out.extend(re.findall(r"`([^`]+)`", line))
+    return out
+
+
+checked = 0
+for doc in docs:
+    name = doc.relative_to(root)
+    for code in code_of(doc.read_text()):
+        for m in re.finditer(r"(?:^|[\s/(])hns ([a-z][a-z-]*)((?: [^|;&#`]*)?)", code):
+            sub, rest = m.group(1), m.group(2)
+            if sub in ("help",):
+                continue
+            checked += 1
+            if sub not in subcommands:
+                failures.append(f"{name}: `hns {sub}` is not a subcommand of hns ({code.strip()})")
+                continue
+            for flag in re.findall(r"(?<![\w-])(--[a-z][a-z0-9-]*)", rest):
+                checked += 1
+                if flag not in flags[sub]:
+                    failures.append(f"{name}: `hns {sub} ... {flag}`: hns {sub} --help has no {flag} ({code.strip()})")
+            for scene in re.findall(r"--scene[ =]([a-z][a-z-]*)", rest):
+                checked += 1
+                if scene not in scenes:
+                    failures.append(f"{name}: --scene {scene} is not a scene of hns ({code.strip()})")
+
+readme_code = "\n".join(code_of((root / "README.md").read_text()))
+for scene in scenes:
+    checked += 1
+    if not re.search(r"(?<![\w-])" + re.escape(scene) + r"(?![\w-])", readme_code):
+        failures.append(f"README.md does not name the scene `{scene}` (hns train --help lists it)")
+
+if package_dir:
+    out = subprocess.run(
+        [sys.executable, "-c", "import hns; print(' '.join(hns.scenes))"],
+        capture_output=True, text=True, env={"PYTHONPATH": package_dir}, timeout=60,
+    )
+    if out.returncode != 0:
+        failures.append("import hns failed: " + out.stderr.strip())
+    else:
+        checked += 1
+        if sorted(out.stdout.split()) != sorted(scenes):
+            failures.append(f"hns.scenes {out.stdout.split()} differs from hns train --help's {scenes}")
+
+for f in failures:
+    print("FAIL:", f)
+print(f"docs test: {checked} names checked, {len(failures)} failures")
+sys.exit(1 if failures else 0)
