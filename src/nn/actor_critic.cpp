@@ -130,7 +130,7 @@ Weights ActorCritic::prepare_weights(bool for_backward) const {
     pack_lstms(for_backward);
     return Weights(values);
   }
-  if (for_backward || packed_stale_) {
+  if (for_backward || packed_stale_ || packed_->kernel() != bf16::kernel()) {
     packed_->pack(values, for_backward);
     packed_stale_ = false;
   }

@@ -11,10 +11,11 @@
 // - B (the right operand) is packed into panels of kPanel = 64 columns (the last panel zero-padded to a
 //   multiple of 16); within a panel, k pair p (p < kp, zeros past k) holds, for each column n,
 //   (b[2p, n], b[2p + 1, n]): four vectors of 16 columns x 2, and 16 such pairs are one AMX B tile.
-// - C[m, n] = (accumulate ? C[m, n] : 0) + sum over pairs p in order of the pair's two products: the odd
-//   element's then the even one's for vdpbf16ps, the even one's then the odd one's for AMX, each added with
-//   one rounding. Each element is one chain over k in order, whatever the number of rows: a row's result
-//   does not depend on the rows beside it (and so not on the thread count).
+// - C[m, n] = (accumulate ? C[m, n] : 0) + the products over k, summed in an order fixed per element:
+//   vdpbf16ps adds, pair by pair, the odd element's product then the even one's, each with one rounding;
+//   an AMX tile, per block of 16 pairs, sums the even elements' products in one chain from 0 and the odd
+//   ones' in another, then adds C + (even + odd). Either way the order depends on k alone, whatever the
+//   number of rows: a row's result does not depend on the rows beside it (and so not on the thread count).
 //
 // Nothing here allocates; the per-thread scratch of the float-level helpers in layers.cpp grows to its
 // largest shape once.
@@ -41,11 +42,12 @@ const char* kernel_name(Kernel k);
 // True when this CPU and OS run AMX-BF16 tiles (cpuid, XCR0, and Linux's permission for the tile state).
 bool amx_available();
 // The kernel in use: AMX where amx_available(), else AVX512-BF16. The environment variable
-// HNS_BF16_KERNEL=avx512-bf16 or amx chooses one (to compare them on one machine); read once, and an unknown
-// value or amx without AMX throws std::invalid_argument naming it.
+// HNS_BF16_KERNEL=avx512-bf16 or amx chooses one (to compare them on one machine); read until it gives a
+// usable choice: an unknown value, or amx without AMX, throws std::invalid_argument naming it.
 Kernel kernel();
-// Switch kernels (tests and benchmarks). The layouts below depend on the kernel: convert and pack again
-// after a switch. Throws std::invalid_argument for a kernel this CPU cannot run.
+// Switch kernels (tests and benchmarks), while no product runs. The layouts below depend on the kernel:
+// convert and pack again after a switch (PackedWeights::pack lays its storage out anew). Throws
+// std::invalid_argument for a kernel this CPU cannot run.
 void set_kernel(Kernel k);
 
 // Float to bf16, round to nearest even (NaN stays NaN), and back (exact).

@@ -31,6 +31,13 @@ thread_local Scratch scratch;
 
 PackedWeights::PackedWeights(const ParamLayout& layout) : mats_(layout.products()) {
   HNS_NN_CHECK(bf16::available(), "bf16 weights on a CPU without AVX512-BF16");
+  lay_out();
+}
+
+void PackedWeights::lay_out() {
+  kernel_ = bf16::kernel();
+  offset_.clear();
+  offset_t_.clear();
   size_t end = 0;
   for (const ProductMatrix& m : mats_) {
     offset_.push_back(end);
@@ -44,6 +51,7 @@ PackedWeights::PackedWeights(const ParamLayout& layout) : mats_(layout.products(
 }
 
 void PackedWeights::pack(const float* values, bool with_transposed) {
+  if (kernel_ != bf16::kernel()) lay_out();
   const int n = static_cast<int>(mats_.size());
   tbb::parallel_for(0, with_transposed ? 2 * n : n, [&](int i) {
     const ProductMatrix& m = mats_[size_t(i % n)];
@@ -71,6 +79,7 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
   }
   const ProductMatrix& m = p.packed->info(id);
   HNS_NN_CHECK(m.rows == x.cols && m.cols == y.cols && x.rows == y.rows, "bf16 product of another shape");
+  HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
   bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(x.rows, x.cols));
   bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
   bf16::gemm(a, x.rows, x.cols, p.packed->matrix(id), y.cols, y.data, y.stride, accumulate);
@@ -88,6 +97,7 @@ void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool ac
   HNS_NN_CHECK(p.packed->has_transposed(), "bf16 backward without transposed weights packed");
   const ProductMatrix& m = p.packed->info(id);
   HNS_NN_CHECK(m.rows == dx.cols && m.cols == dz.cols && dz.rows == dx.rows, "bf16 product of another shape");
+  HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
   bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(dz.rows, dz.cols));
   bf16::convert_a(dz.data, dz.stride, dz.rows, dz.cols, a);
   bf16::gemm(a, dz.rows, dz.cols, p.packed->transposed(id), dx.cols, dx.data, dx.stride, accumulate);

@@ -24,8 +24,11 @@ class PackedWeights {
   explicit PackedWeights(const ParamLayout& layout);
 
   // Packs every matrix from the float parameter values (and the transposes, with_transposed), in parallel
-  // over matrices (each is packed by one thread: the result does not depend on the thread count).
+  // over matrices (each is packed by one thread: the result does not depend on the thread count), in the
+  // layout of the bf16 kernel in use (bf16::kernel(); laid out anew if it changed since the last pack).
   void pack(const float* values, bool with_transposed);
+  // The kernel whose layout the packed matrices have.
+  bf16::Kernel kernel() const { return kernel_; }
   bool has_transposed() const { return has_transposed_; }
   // The registration of matrix id (its shape, for the products' checks).
   const ProductMatrix& info(int id) const {
@@ -40,7 +43,9 @@ class PackedWeights {
   const bf16::bf16_t* data(size_t elem) const {
     return reinterpret_cast<const bf16::bf16_t*>(storage_.data()) + elem;
   }
+  void lay_out();  // offsets and storage for kernel_
   std::vector<ProductMatrix> mats_;
+  bf16::Kernel kernel_ = bf16::Kernel::kAvx512Bf16;
   std::vector<size_t> offset_, offset_t_;  // bf16 elements into storage_, 64-byte aligned
   FloatBuffer storage_;                    // two bf16 per float
   bool has_transposed_ = false;

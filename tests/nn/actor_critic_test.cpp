@@ -349,6 +349,35 @@ TEST(NnNetwork, Bf16ProductsChangeTheResultsWithinTheirPrecision) {
   EXPECT_LT(std::sqrt(err), 0.02 * std::sqrt(ref));
 }
 
+// Switching the bf16 kernel after a network packed its weights lays them out anew for the new kernel: the
+// results equal those of a network that only ever ran on it (the AMX layouts pad k, so packing into the old
+// layout would overrun it).
+TEST(NnNetwork, SwitchingTheBf16KernelRepacksTheWeights) {
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
+  const bf16::Kernel saved = bf16::kernel();
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 3;
+  const int seqs = 6, steps = 2, rows = seqs * steps;
+  const ObsData data(cfg.obs, rows, 900);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, rows);
+  bf16::set_kernel(bf16::Kernel::kAvx512Bf16);
+  ActorCritic a(cfg, par);
+  a.params().init(5);
+  a.set_precision(Precision::kBf16);
+  (void)outputs_and_grads(a, norm.view(), data.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
+  bf16::set_kernel(bf16::Kernel::kAmxEmulated);
+  const Result switched = outputs_and_grads(a, norm.view(), data.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
+  ActorCritic b(cfg, par);
+  b.params().init(5);
+  b.set_precision(Precision::kBf16);
+  const Result fresh = outputs_and_grads(b, norm.view(), data.batch(), seqs, steps, 0.1f, 0.0f, 1.0f);
+  bf16::set_kernel(saved);
+  EXPECT_TRUE(same_bits(switched.logits.data(), fresh.logits.data(), fresh.logits.size()));
+  EXPECT_TRUE(same_bits(switched.value.data(), fresh.value.data(), fresh.value.size()));
+  EXPECT_TRUE(same_bits(switched.grads.data(), fresh.grads.data(), fresh.grads.size()));
+}
+
 // The trainer's path: observations normalised once into a rollout (rows in another order), a minibatch read
 // through a row index with the identity view. Logits, values and gradients equal, to the bit, those of the
 // same rows held contiguously, raw, and normalised inside the forward pass.
