@@ -133,7 +133,8 @@ uint64_t parse_seed(const std::string& flag, const std::string& text) {
   uint64_t value = 0;
   const char* end = text.data() + text.size();
   const auto [ptr, err] = std::from_chars(text.data(), end, value);
-  if (text.empty() || text[0] == '-' || text[0] == '+' || err != std::errc() || ptr != end) {
+  const bool leading_zero = text.size() > 1 && text[0] == '0';
+  if (text.empty() || text[0] == '-' || text[0] == '+' || leading_zero || err != std::errc() || ptr != end) {
     throw physics::ConfigError(flag + " = " + text +
                                " is invalid: must be a whole number in [0, 18446744073709551615]");
   }

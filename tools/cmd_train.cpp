@@ -4,6 +4,7 @@
 //   hns train [--config FILE] [--scene S] [--model M] [--iterations K] [--seed S] [--threads T] [--envs N]
 //             [--precision fp32|bf16|auto] [--set KEY=VALUE ...] [--out DIR | --resume DIR]
 //             [--init-from CHECKPOINT] [--overwrite] [--profile FILE]
+#include <sys/stat.h>
 #include <unistd.h>
 #include <atomic>
 #include <csignal>
@@ -31,6 +32,7 @@
 #include "ppo/atomic_file.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
+#include "replay/metrics.hpp"
 #include "replay/recorder.hpp"
 #include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
@@ -103,12 +105,12 @@ std::string truncate_metrics(const std::string& path, int64_t iteration) {
   std::string line;
   std::vector<std::string> dropped;
   for (int64_t number = 1; std::getline(in, line); ++number) {
-    const nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
-    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
-        !row["iteration"].is_number_integer()) {
+    // Only rows hns report reads (replay::is_iteration_record) are kept.
+    if (!replay::is_iteration_record(line)) {
       if (!line.empty()) dropped.push_back(std::to_string(number));
       continue;
     }
+    const nlohmann::json row = nlohmann::json::parse(line);
     if (row["iteration"].get<int64_t>() > iteration) continue;
     kept += line + "\n";
   }
@@ -259,11 +261,28 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   } else if (!opt.config_file.empty()) {
     cfg.merge_json(read_text(opt.config_file, "--config"), opt.config_file);
   }
-  // Flags win over files.
+  // Flags win over files. A key given both by its own flag and by --set is refused: one of the two values
+  // would be dropped unchecked.
+  const std::pair<const char*, bool> flag_keys[] = {{"scene", bool(opt.scene)},
+                                                    {"model", bool(opt.model)},
+                                                    {"iterations", bool(opt.iterations)},
+                                                    {"threads", bool(opt.threads)},
+                                                    {"envs", bool(opt.envs)},
+                                                    {"seed", bool(opt.seed)},
+                                                    {"precision", bool(opt.precision)},
+                                                    {"init_from", bool(opt.init_from)}};
   for (const std::string& kv : opt.sets) {
     const auto eq = kv.find('=');
     if (eq == std::string::npos) throw physics::ConfigError("--set " + kv + ": expected KEY=VALUE");
-    cfg.set(kv.substr(0, eq), kv.substr(eq + 1));
+    const std::string key = kv.substr(0, eq);
+    for (const auto& [name, given] : flag_keys) {
+      if (given && key == name) {
+        std::string flag = std::string("--") + name;
+        if (flag == "--init_from") flag = "--init-from";
+        throw physics::ConfigError("--set " + kv + " and " + flag + " both give " + key + ": give it once");
+      }
+    }
+    cfg.set(key, kv.substr(eq + 1));
   }
   if (opt.scene) cfg.scene = *opt.scene;
   if (opt.model) cfg.model = *opt.model;
@@ -284,8 +303,14 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     std::error_code ec;
     if (fs::is_directory(cfg.init_from, ec))
       throw physics::ConfigError(init_what + cfg.init_from + ": is a folder, not a checkpoint file");
-    if (!fs::is_regular_file(cfg.init_from, ec))
+    if (!fs::exists(cfg.init_from, ec))
       throw physics::ConfigError(init_what + cfg.init_from + ": no such checkpoint file");
+    if (!fs::is_regular_file(cfg.init_from, ec)) {
+      struct stat st {};
+      const std::string kind =
+          ::stat(cfg.init_from.c_str(), &st) == 0 ? ppo::special_file_kind(st.st_mode) : "not a regular file";
+      throw physics::ConfigError(init_what + cfg.init_from + " is " + kind + ", not a checkpoint file");
+    }
     cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
   }
   cfg.validate();
@@ -391,6 +416,24 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
       std::printf(
           "hns train: %s holds no checkpoint (an earlier run stopped before writing one): starting over\n",
           dir.c_str());
+    }
+    // Nothing is removed unless every run file it would remove or replace is a file (or a link) hns can
+    // replace: a folder or a FIFO in a run file's place is refused first, with nothing touched.
+    const std::string config_path = (fs::path(dir) / "config.json").string();
+    for (const std::string& f : {ckpt, metrics_path, replay_path, config_path}) {
+      for (const std::string& p : {f, f + ".tmp"}) {
+        std::error_code sec;
+        // (ckpt, metrics and replay are removed, a link included; config.json is written through
+        // check_replaceable, which follows a link)
+        const fs::file_status st = f == config_path ? fs::status(p, sec) : fs::symlink_status(p, sec);
+        if (sec || !fs::exists(st) || fs::is_regular_file(st) || fs::is_symlink(st)) continue;
+        struct stat raw {};
+        const std::string kind =
+            ::lstat(p.c_str(), &raw) == 0 ? ppo::special_file_kind(raw.st_mode) : "not a file";
+        throw physics::ConfigError(p + " is " + kind +
+                                   ", where the run keeps a file of its own: hns removes and "
+                                   "replaces only files it wrote; move it away, or use another --out");
+      }
     }
     for (const std::string& f : {ckpt, metrics_path, replay_path}) {
       fs::remove(f);

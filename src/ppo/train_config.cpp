@@ -89,11 +89,38 @@ void parse_into(std::string_view key, std::string_view text, std::string& out) {
   (void)key;
   out = std::string(text);
 }
+// Whether text is a number in JSON's form: an optional minus, 0 or digits without a leading zero, then (where
+// fraction is allowed) an optional fraction and exponent. Not "010", "1.", ".5", "+1", "0x10".
+bool json_number_form(std::string_view text, bool fraction) {
+  size_t i = 0;
+  auto digits = [&] {
+    const size_t start = i;
+    while (i < text.size() && text[i] >= '0' && text[i] <= '9') ++i;
+    return i - start;
+  };
+  if (i < text.size() && text[i] == '-') ++i;
+  if (i < text.size() && text[i] == '0') {
+    ++i;
+  } else if (digits() == 0) {
+    return false;
+  }
+  if (fraction && i < text.size() && text[i] == '.') {
+    ++i;
+    if (digits() == 0) return false;
+  }
+  if (fraction && i < text.size() && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < text.size() && (text[i] == '+' || text[i] == '-')) ++i;
+    if (digits() == 0) return false;
+  }
+  return i == text.size();
+}
+
 template <class Int>
 void parse_integer(std::string_view key, std::string_view text, Int& out) {
   Int v{};
   const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), v);
-  if (ec != std::errc() || end != text.data() + text.size()) {
+  if (!json_number_form(text, false) || ec != std::errc() || end != text.data() + text.size()) {
     throw ConfigError(field_error(key, text, "must be an integer"));
   }
   out = v;
@@ -110,8 +137,8 @@ void parse_into(std::string_view key, std::string_view text, double& out) {
   double v = 0;
   const auto [end, ec] =
       std::from_chars(text.data(), text.data() + text.size(), v, std::chars_format::general);
-  const bool json_start = !text.empty() && (text[0] == '-' || (text[0] >= '0' && text[0] <= '9'));
-  if (!json_start || ec != std::errc() || end != text.data() + text.size() || !std::isfinite(v)) {
+  if (!json_number_form(text, true) || ec != std::errc() || end != text.data() + text.size() ||
+      !std::isfinite(v)) {
     throw ConfigError(field_error(key, text, "must be a finite number"));
   }
   out = v;

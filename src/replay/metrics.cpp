@@ -4,6 +4,20 @@
 
 namespace hns::replay {
 
+namespace {
+
+bool is_record(const nlohmann::json& row) {
+  return !row.is_discarded() && row.is_object() && row.contains("iteration") &&
+         row["iteration"].is_number_integer() && row["iteration"].get<int64_t>() >= 1 &&
+         row.contains("agent_steps") && row["agent_steps"].is_number();
+}
+
+}  // namespace
+
+bool is_iteration_record(std::string_view line) {
+  return is_record(nlohmann::json::parse(line, nullptr, false));
+}
+
 MetricsRows read_metrics_jsonl(std::string_view text) {
   nlohmann::json rows = nlohmann::json::array();
   size_t number = 0;
@@ -14,9 +28,10 @@ MetricsRows read_metrics_jsonl(std::string_view text) {
     ++number;
     if (line.empty()) continue;
     nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
-    if (row.is_discarded() || !row.is_object() || !row.contains("iteration") ||
-        !row["iteration"].is_number() || !row.contains("agent_steps") || !row["agent_steps"].is_number()) {
-      throw MetricsError(number, "is not an iteration record (a JSON object with iteration, agent_steps)");
+    if (!is_record(row)) {
+      throw MetricsError(number,
+                         "is not an iteration record (a JSON object with iteration, a whole number >= 1, and "
+                         "agent_steps)");
     }
     rows.push_back(std::move(row));
   }

@@ -20,8 +20,12 @@ struct MetricsRows {
   size_t rows = 0;
 };
 
+// Whether one line of metrics.jsonl is an iteration record: a JSON object whose "iteration" is a whole
+// number >= 1 and whose "agent_steps" is a number. What hns report reads and hns train --resume keeps.
+bool is_iteration_record(std::string_view line);
+
 // The rows of a metrics.jsonl text as one JSON array (blank lines skipped). Throws MetricsError naming the
-// first line that is not an iteration record: a JSON object with "iteration" and "agent_steps" numbers.
+// first line that is not an iteration record.
 MetricsRows read_metrics_jsonl(std::string_view text);
 
 }  // namespace hns::replay

@@ -182,5 +182,41 @@ expect_fail 2 "eval.json is not a regular file" eval --out "$tmp/evalfifo" --tas
 [ "$(cat "$tmp/probe/counting.md")" = "mine" ] && [ "$(cat "$tmp/evals/eval.md")" = "mine" ] && ok ||
   fail "counting or eval replaced a file it was not asked to"
 
+# --- Third probe's findings.
+# A key given by its flag and by --set: refused, not one value silently dropped unchecked.
+expect_fail 2 "--set scene=bogus and --scene both give scene" train --scene quadrant --set scene=bogus --out "$tmp/x2"
+expect_fail 2 "--set envs=-5 and --envs both give envs" train --envs 2 --set envs=-5 --out "$tmp/x2"
+# Numbers with a leading zero, or a bare point, are not numbers in JSON's form.
+expect_fail 2 "--seed = 010 is invalid" train --seed 010 --out "$tmp/x2"
+expect_fail 2 "--seed = 010 is invalid" play --scene quadrant --seed 010 --out "$tmp/x2.traj"
+expect_fail 2 "epochs = '010' is invalid" train --set epochs=010 --out "$tmp/x2"
+expect_fail 2 "lr = '01' is invalid" train --set lr=01 --out "$tmp/x2"
+expect_fail 2 "lr = '1.' is invalid" train --set lr=1. --out "$tmp/x2"
+[ -e "$tmp/x2" ] && fail "a refused start created its run folder"
+# --init-from a special file says what it is.
+expect_fail 2 "--init-from /dev/zero is a character device, not a checkpoint file" train --init-from /dev/zero \
+  --out "$tmp/x2"
+# --resume keeps only rows hns report reads: a row it would refuse is dropped, with a warning.
+cp -r "$tmp/run" "$tmp/badrow"
+echo '{"iteration": -1}' >>"$tmp/badrow/metrics.jsonl"
+if resume "$tmp/badrow" --iterations 3 >"$tmp/log" 2>&1 && grep -q "line 3 is not a whole metrics row" "$tmp/log" &&
+   "$hns" report "$tmp/badrow" --html "$tmp/badrow.html" >/dev/null 2>&1; then
+  ok
+else
+  fail "--resume kept a metrics row that hns report refuses: $(cat "$tmp/log")"
+fi
+# --overwrite over a run whose file is a FIFO or a folder: exit 2 before anything is removed.
+cp -r "$tmp/run" "$tmp/ow-fifo"
+rm "$tmp/ow-fifo/config.json"
+mkfifo "$tmp/ow-fifo/config.json"
+expect_fail 2 "config.json is a FIFO" train --config "$tmp/train.json" --iterations 1 --out "$tmp/ow-fifo" --overwrite
+cp -r "$tmp/run" "$tmp/ow-dir"
+rm "$tmp/ow-dir/metrics.jsonl"
+mkdir "$tmp/ow-dir/metrics.jsonl"
+echo "mine" >"$tmp/ow-dir/metrics.jsonl/user.txt"
+expect_fail 2 "metrics.jsonl is a folder" train --config "$tmp/train.json" --iterations 1 --out "$tmp/ow-dir" --overwrite
+[ -f "$tmp/ow-fifo/checkpoint.bin" ] && [ -f "$tmp/ow-dir/checkpoint.bin" ] && [ -f "$tmp/ow-dir/replay.traj" ] &&
+  [ -f "$tmp/ow-dir/metrics.jsonl/user.txt" ] && ok || fail "a refused --overwrite removed run files"
+
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
