@@ -1024,22 +1024,26 @@ void BatchSim::measure_env(int env, float out[kNumPrepStats]) const {
                             s.ramp_exists.data() + r, L.max_ramps);
   out[kRampLock] = count(s.ramp_locked.data() + r, L.max_ramps);
 
-  // Doors sealed by the locked boxes (stage_stats.hpp). At most kMaxSealBoxes boxes are looked at: far more
-  // than any scene the presets build.
+  // Doors sealed by the locked boxes (stage_stats.hpp), and doors the boxes cover whether locked or not
+  // (boxes moved into the doorways). At most kMaxSealBoxes boxes are looked at: far more than any scene the
+  // presets build.
   constexpr int kMaxSealBoxes = 32;
-  Footprint locked[kMaxSealBoxes];
-  int num_locked = 0;
-  for (int k = 0; k < L.max_boxes && num_locked < kMaxSealBoxes; ++k) {
-    if (s.box_exists[b + k] == 0 || s.box_locked[b + k] == 0) continue;
-    locked[num_locked++] = box_footprint(env, k);
+  Footprint locked[kMaxSealBoxes], all[kMaxSealBoxes];
+  int num_locked = 0, num_all = 0;
+  for (int k = 0; k < L.max_boxes && num_all < kMaxSealBoxes; ++k) {
+    if (s.box_exists[b + k] == 0) continue;
+    all[num_all++] = box_footprint(env, k);
+    if (s.box_locked[b + k] != 0) locked[num_locked++] = all[num_all - 1];
   }
   const physics::Scene& scene = worlds_[env]->scene();
-  int sealed = 0;
+  int sealed = 0, blocked = 0;
   for (const physics::DoorCells& door : scene.doors) {
-    sealed +=
-        door_sealed(door_gap(scene, door), std::span<const Footprint>(locked, size_t(num_locked))) ? 1 : 0;
+    const DoorGap gap = door_gap(scene, door);
+    sealed += door_sealed(gap, std::span<const Footprint>(locked, size_t(num_locked))) ? 1 : 0;
+    blocked += door_sealed(gap, std::span<const Footprint>(all, size_t(num_all))) ? 1 : 0;
   }
   out[kDoorsSealed] = float(sealed);
+  out[kDoorsBlocked] = float(blocked);
   bool in_room = false;
   if (scene.layout == physics::Layout::kQuadrant) {
     const Rect room = quadrant_room();
@@ -1049,6 +1053,18 @@ void BatchSim::measure_env(int env, float out[kNumPrepStats]) const {
     }
   }
   out[kRampInRoom] = in_room ? 1.0f : 0.0f;
+  // The hiders inside the quadrant room (their centres), as a fraction of the hiders.
+  int hiders = 0, inside = 0;
+  if (scene.layout == physics::Layout::kQuadrant) {
+    const Rect room = quadrant_room();
+    const size_t ea = size_t(env) * L.max_agents;
+    for (int a = 0; a < worlds_[env]->num_agents(); ++a) {
+      if (s.agent_hider[ea + a] == 0) continue;
+      ++hiders;
+      inside += room.contains(s.agent_pos[3 * (ea + a)], s.agent_pos[3 * (ea + a) + 1]) ? 1 : 0;
+    }
+  }
+  out[kHidersInRoom] = hiders > 0 ? float(inside) / float(hiders) : 0.0f;
 }
 
 Footprint BatchSim::box_footprint(int env, int box) const {
@@ -1149,6 +1165,8 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   st.ramp_wall_dist = run[kRampWallDist];
   st.seeker_high_seen = run[kHighSeen];
   st.ramp_in_room_prep = prep[kRampInRoom];
+  st.num_door_blocked_prep = prep[kDoorsBlocked];
+  st.hiders_in_room_prep = prep[kHidersInRoom];
   st.box_surf = run[kSurfCount] >= float(kSurfSteps) ? 1.0f : 0.0f;
   st.food_eaten = run[kFoodEaten];
   st.max_agent_move = 0.0f;

@@ -43,7 +43,17 @@ struct BatchConfig {
 // Slots of the stat_prep field: what the episode statistics read from the mirror when the preparation phase
 // ends (and again when the episode ends): SPEC §7's max box move (m), boxes locked, max ramp move (m), ramps
 // locked, then the doors sealed by locked boxes and whether a ramp is in the quadrant room (1 or 0).
-enum PrepStat { kBoxMove, kBoxLock, kRampMove, kRampLock, kDoorsSealed, kRampInRoom, kNumPrepStats };
+enum PrepStat {
+  kBoxMove,
+  kBoxLock,
+  kRampMove,
+  kRampLock,
+  kDoorsSealed,
+  kRampInRoom,
+  kDoorsBlocked,
+  kHidersInRoom,
+  kNumPrepStats
+};
 // Slots of the stat_run field: the seeking phase's running statistics. The closest a ramp came to an
 // interior wall (m, starts at 6); 1 once a seeker above a wall saw a hider; steps in which a hider was seen;
 // seeking-phase steps; the sum and count of the seekers' speeds towards their nearest hider (m/s); steps in
@@ -66,9 +76,9 @@ inline constexpr int32_t kTargetSpawn = -2;  // lock-and-return: every box is lo
 
 // Per-env sizes of every tensor, fixed per batch by the config's maxima.
 struct Layout {
-  int max_agents = 0;                        // A
-  int max_boxes = 0;                         // B
-  int max_ramps = 0;                         // R
+  int max_agents = 0;  // A
+  int max_boxes = 0;   // B
+  int max_ramps = 0;   // R
   // C: the networks' fourth entity type, blueprint's construction sites or the food (0 in other scenes),
   // of site_features floats each (kConstructionSiteFeatures or kFoodFeatures).
   int max_sites = 0;
@@ -170,7 +180,7 @@ struct Layout {
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                         \
   X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
-  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 6)")             \
+  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 8)")             \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
   /* Box-locking tasks (WorldConfig::is_lock_task(), SPEC §9.2). */                                        \
@@ -234,6 +244,8 @@ struct BatchState {
   X(ramp_wall_dist, "m, closest a ramp came to an interior wall in the seeking phase (6: no such wall)")    \
   X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
+  X(num_door_blocked_prep, "doors covered by boxes, locked or not, at the end of the preparation phase")    \
+  X(hiders_in_room_prep, "fraction of the hiders inside the quadrant room at the end of prep")              \
   X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")                \
   X(max_agent_move, "m, largest agent displacement from its spawn at the end of the episode")               \
   X(food_eaten, "food units the hiders ate in the episode (the food variants)")
@@ -334,9 +346,9 @@ class BatchSim {
   void vision_env(int env);
   void lidar_env(int env);
   void rewards_env(int env);
-  void lockbox_rewards_env(int env, float* reward);  // SPEC §9.2 box-locking tasks, for agent 0
-  void lockbox_retarget(int env);                    // agent 0's target and its distance
-  void shelter_rewards_env(int env, float* reward);  // SPEC §9.3
+  void lockbox_rewards_env(int env, float* reward);    // SPEC §9.2 box-locking tasks, for agent 0
+  void lockbox_retarget(int env);                      // agent 0's target and its distance
+  void shelter_rewards_env(int env, float* reward);    // SPEC §9.3
   void blueprint_rewards_env(int env, float* reward);  // SPEC §9.1; sets task_complete
   // The food variants (SPEC §5.4): eating, health and respawn after a step; adds each agent's food reward.
   void food_env(int env, float* reward, bool prep);

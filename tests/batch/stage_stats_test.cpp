@@ -192,6 +192,8 @@ TEST(StageDetectors, StagedFortWithBothDoorsSealedCountsTwo) {
   EXPECT_EQ(st.num_door_sealed_prep, 2.0f);
   EXPECT_EQ(st.num_door_sealed, 2.0f);
   EXPECT_EQ(st.ramp_in_room_prep, 1.0f) << "the ramp stands in the room";
+  EXPECT_EQ(st.num_door_blocked_prep, 2.0f) << "a sealed door is blocked too";
+  EXPECT_EQ(st.hiders_in_room_prep, 1.0f) << "both hiders stay behind their cubes";
   EXPECT_EQ(st.hider_seen_frac, 0.0f) << "nobody sees into a sealed room from the floor";
   EXPECT_EQ(st.seeker_high_seen, 0.0f);
   EXPECT_EQ(st.box_surf, 0.0f);
@@ -207,6 +209,8 @@ TEST(StageDetectors, OneLockedCubeSealsOneDoorAndAnUnlockedOneNone) {
   ASSERT_EQ(stage_fort(sim, 1.0, 1.0).size(), 2u);
   st = play_episode(sim, {});
   EXPECT_EQ(st.num_door_sealed_prep, 0.0f) << "cubes in place but unlocked seal nothing";
+  EXPECT_EQ(st.num_door_blocked_prep, 2.0f) << "but they block both doors";
+  EXPECT_EQ(st.hiders_in_room_prep, 1.0f);
 }
 
 // One hider, one seeker, up to one box and one ramp, no walls and no preparation phase.
@@ -305,13 +309,14 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
   const int A = sim.layout().max_agents;
   std::vector<AgentAction> acts(size_t(config.num_envs) * A);
   physics::Rng rng(7, 0, 0);
-  double episodes = 0, sealed = 0, locked = 0, surf = 0, approach = 0;
+  double episodes = 0, sealed = 0, blocked = 0, locked = 0, surf = 0, approach = 0;
   for (int t = 0; t < 3 * 80; ++t) {
     for (AgentAction& a : acts) a = physics::random_action(rng);
     sim.step(acts);
     for (const EpisodeStats& st : sim.finished()) {
       episodes += 1;
       sealed += st.num_door_sealed_prep;
+      blocked += st.num_door_blocked_prep;
       locked += st.num_box_lock_prep;
       surf += st.box_surf;
       approach += st.seeker_approach;
@@ -320,6 +325,8 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
   ASSERT_EQ(episodes, 48.0);
   EXPECT_GT(locked, 0.0) << "random play does lock boxes";
   EXPECT_LT(sealed / episodes, 0.1) << "but seals doors hardly ever";
+  EXPECT_LT(blocked / episodes, 0.2) << "and blocks them seldom";
+  EXPECT_LE(sealed, blocked) << "a sealed door is a blocked one";
   EXPECT_EQ(surf, 0.0);
   EXPECT_LT(std::abs(approach / episodes), 0.3) << "random seekers do not chase";
 }
