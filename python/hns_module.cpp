@@ -838,7 +838,7 @@ PYBIND11_MODULE(_hns, m) {
   m.attr("scenes") = scenes;
   py::register_exception<hns::replay::TrajectoryError>(m, "TrajectoryError", PyExc_ValueError);
 
-  py::class_<BatchEnv>(m, "BatchEnv", R"doc(
+  py::class_<BatchEnv>(m, "BatchEnv", py::dynamic_attr(), R"doc(
 A batch of hide-and-seek games stepped together (TBB threads; the GIL is released while stepping).
 
 BatchEnv(scene="quadrant", num_envs=64, threads=0, seed=1, hiders=None, seekers=None, boxes=None,

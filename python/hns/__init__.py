@@ -57,6 +57,47 @@ from ._hns import (  # noqa: F401
     scenes,
 )
 from ._hns import _detect_stages_json, _read_metrics_json
+from . import spaces  # noqa: E402
+
+
+# Gymnasium's names for what a BatchEnv takes and gives (hns.spaces: gymnasium.spaces where importable). Each
+# is built on first use and kept by the env, so seeding a space (env.action_space.seed(1)) lasts.
+def _cached(name, make):
+    def get(self):
+        space = self.__dict__.get(name)
+        if space is None:
+            space = self.__dict__[name] = make(self)
+        return space
+
+    get.__doc__ = make.__doc__
+    return property(get)
+
+
+def _single_observation_space(self):
+    """The observation of one env: a Dict of Box spaces, one per key of reset()'s and step()'s obs (the
+    arrays without their leading num_envs axis)."""
+    return spaces.observation_space(self.observations(), None, self.horizon)
+
+
+def _observation_space(self):
+    """The batch's observation: single_observation_space with the leading num_envs axis."""
+    return spaces.observation_space(self.observations(), self.num_envs, self.horizon)
+
+
+def _single_action_space(self):
+    """The actions of one env: MultiDiscrete [11, 11, 11, 2, 2] per agent slot, shape (max_agents, 5), uint8."""
+    return spaces.action_space(self.max_agents)
+
+
+def _action_space(self):
+    """The batch's actions, what step() takes: shape (num_envs, max_agents, 5), uint8."""
+    return spaces.action_space(self.max_agents, self.num_envs)
+
+
+BatchEnv.single_observation_space = _cached("_single_observation_space", _single_observation_space)
+BatchEnv.observation_space = _cached("_observation_space", _observation_space)
+BatchEnv.single_action_space = _cached("_single_action_space", _single_action_space)
+BatchEnv.action_space = _cached("_action_space", _action_space)
 
 
 def read_metrics(path):

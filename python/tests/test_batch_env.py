@@ -329,3 +329,34 @@ def test_import_refuses_a_cpu_without_the_build_isa(monkeypatch):
     monkeypatch.setitem(hns._ISA_FLAGS, "avx512", ("avx2", "no_such_cpu_flag"))
     with pytest.raises(ImportError, match="HNS_ISA=avx512.*lacks no_such_cpu_flag: rebuild with HNS_ISA=avx2"):
         hns._check_cpu()
+
+
+def test_spaces_describe_what_reset_and_step_give_and_take():
+    # Gymnasium's contract: every observation is in observation_space, every sample of action_space is an
+    # action step() takes, and the single_* spaces are one env's share.
+    env = hns.BatchEnv(scene="quadrant", num_envs=3, threads=1, seed=5)
+    obs, _ = env.reset()
+    space, single = env.observation_space, env.single_observation_space
+    assert set(space.keys()) == set(obs.keys())
+    for key, a in obs.items():
+        assert space[key].shape == a.shape and space[key].dtype == a.dtype, key
+        assert single[key].shape == a.shape[1:], key
+    assert space.contains({k: v.copy() for k, v in obs.items()})
+    assert env.action_space.shape == (3, env.max_agents, 5)
+    assert env.single_action_space.shape == (env.max_agents, 5)
+    env.action_space.seed(1)
+    for _ in range(20):
+        actions = env.action_space.sample()
+        assert actions in env.action_space
+        assert actions[..., :3].max() <= 10 and actions[..., 3:].max() <= 1
+        obs, reward, terminated, truncated, info = env.step(actions)
+        assert space.contains({k: v.copy() for k, v in obs.items()})
+    bad = env.action_space.sample()
+    bad[0, 0, 3] = 2  # grab is 0 or 1
+    assert bad not in env.action_space
+    assert env.action_space.sample().shape == (3, env.max_agents, 5)
+    # Seeded samples repeat.
+    env.action_space.seed(7)
+    a = env.action_space.sample()
+    env.action_space.seed(7)
+    assert (env.action_space.sample() == a).all()
