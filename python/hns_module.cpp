@@ -304,8 +304,45 @@ class BatchEnv {
     terminated_view_ = make_view(keep->zeros.data(), Shape{E}, owner_, /*as_bool=*/true);
   }
 
-  py::tuple reset(const std::optional<py::handle>& episodes, bool copy) {
+  py::tuple reset(std::optional<py::handle> episodes, bool copy, const py::object& seed,
+                  const py::object& options) {
     BusyGuard busy(busy_, "BatchEnv.reset");
+    if (!options.is_none()) {
+      if (!py::isinstance<py::dict>(options)) raise(PyExc_TypeError, "options: expected a dict or None");
+      for (auto item : py::reinterpret_borrow<py::dict>(options)) {
+        const std::string key = py::str(item.first);
+        if (key != "episodes")
+          raise(PyExc_ValueError, "options: unknown key '" + key + "' (known: episodes)");
+        if (episodes && !episodes->is_none())
+          raise(PyExc_ValueError, "episodes given twice: as an argument and in options");
+        episodes = item.second;
+      }
+    }
+    const bool seeded = !seed.is_none();
+    if (seeded) {
+      const uint64_t s = seed_from(seed);
+      py::gil_scoped_release release;
+      sim_->reseed(s);
+    }
+    const bool first = !reset_called_;
+    reset_called_ = true;
+    if (!seeded && !first && (!episodes || episodes->is_none())) {
+      // A later reset without a seed: every env starts its next episode (never one it has played).
+      const batch::BatchState& s = sim_->state();
+      std::vector<int32_t> next(static_cast<size_t>(num_envs()));
+      for (int e = 0; e < num_envs(); ++e) {
+        if (s.episode[size_t(e)] >= (1 << 30) - 1)
+          raise(PyExc_ValueError, "env " + std::to_string(e) +
+                                      " has played 2^30 episodes: reset(seed=...) "
+                                      "starts over");
+        next[size_t(e)] = s.episode[size_t(e)] + 1;
+      }
+      {
+        py::gil_scoped_release release;
+        sim_->reset(next);
+      }
+      return py::make_tuple(observations(copy), info(copy));
+    }
     if (episodes && !episodes->is_none()) {
       py::array a = as_array(*episodes, "episodes");
       if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
@@ -515,6 +552,7 @@ class BatchEnv {
   py::dict fields_, docs_, obs_;
   py::array truncated_;        // bool view of the batch's done flags: the horizon ends a game (a time limit)
   py::array terminated_view_;  // always false (Keeper::zeros): no game ends otherwise
+  bool reset_called_ = false;  // a reset() without seed or episodes after the first starts new episodes
   std::atomic<bool> busy_{false};
 };
 
@@ -852,7 +890,10 @@ reset(). Pass copy=True for arrays of your own.)doc")
            py::arg("seekers") = py::none(), py::arg("boxes") = py::none(), py::arg("ramps") = py::none(),
            py::arg("horizon") = py::none())
       .def("reset", &BatchEnv::reset, py::arg("episodes") = py::none(), py::arg("copy") = false,
-           "Starts episode 0 of every env (or episodes[e] of env e). Returns (obs, info).")
+           py::kw_only(), py::arg("seed") = py::none(), py::arg("options") = py::none(),
+           "Starts new episodes and returns (obs, info): with seed, episode 0 of every env drawn from that "
+           "seed; the first reset without one, episode 0; later resets without one, every env's next "
+           "episode; episodes (or options={'episodes': ...}): episodes[e] of env e.")
       .def(
           "step", &BatchEnv::step, py::arg("actions"), py::arg("copy") = false,
           "One step of every env. actions: integer array (num_envs, max_agents, 5): movement x, y, turn bins "

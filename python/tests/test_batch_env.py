@@ -96,7 +96,7 @@ def test_views_are_the_batch_buffers_without_copies():
     for name in OBS_FIELDS:
         assert obs[name].__array_interface__["data"][0] == env._field_address(name), name
     before = obs["obs_self"].copy()
-    owned, _ = env.reset(copy=True)
+    owned, _ = env.reset(copy=True, seed=1)  # the same episodes again
     obs2, reward, _, truncated, _ = env.step(np.full((4, env.max_agents, 5), [10, 10, 0, 0, 0], dtype=np.uint8))
     # The same memory, now holding the new step: a view is live, a copy is not.
     assert obs2["obs_self"].__array_interface__["data"][0] == obs["obs_self"].__array_interface__["data"][0]
@@ -360,3 +360,31 @@ def test_spaces_describe_what_reset_and_step_give_and_take():
     a = env.action_space.sample()
     env.action_space.seed(7)
     assert (env.action_space.sample() == a).all()
+
+
+def test_reset_follows_gymnasium_seeding():
+    # reset(seed=s) starts episode 0 of every env drawn from s (as a new env of that seed); resets without a
+    # seed after the first start new episodes, never replaying one; options={"episodes": ...} names them.
+    env = hns.BatchEnv(scene="quadrant", num_envs=3, threads=1, seed=1)
+    first, _ = env.reset(seed=42)
+    first = {k: v.copy() for k, v in first.items()}
+    assert env.seed == 42 and (first["episode"] == 0).all()
+    fresh = hns.BatchEnv(scene="quadrant", num_envs=3, threads=1, seed=42)
+    obs, _ = fresh.reset()
+    for k in first:
+        np.testing.assert_array_equal(first[k], obs[k], err_msg=k)
+    seen = [first["episode"].copy()]
+    for _ in range(3):
+        obs, _ = env.reset()
+        assert (obs["episode"] > seen[-1]).all(), "a reset without a seed replayed an episode"
+        seen.append(obs["episode"].copy())
+    again, _ = env.reset(seed=42)
+    np.testing.assert_array_equal(again["obs_self"], first["obs_self"])
+    obs, _ = env.reset(options={"episodes": np.array([3, 4, 5])})
+    np.testing.assert_array_equal(obs["episode"], [3, 4, 5])
+    with pytest.raises(ValueError, match="unknown key 'bogus'"):
+        env.reset(options={"bogus": 1})
+    with pytest.raises(TypeError, match="options"):
+        env.reset(options=[1])
+    with pytest.raises(ValueError, match="given twice"):
+        env.reset(episodes=np.array([1, 2, 3]), options={"episodes": np.array([1, 2, 3])})

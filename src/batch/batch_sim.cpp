@@ -163,6 +163,11 @@ void BatchSim::reset() {
   reset(std::span<const int32_t>());
 }
 
+void BatchSim::reseed(uint64_t seed) {
+  config_.seed = seed;
+  for (auto& w : worlds_) w->set_seed(seed);
+}
+
 void BatchSim::reset(std::span<const int32_t> episodes) {
   if (!episodes.empty() && int(episodes.size()) != config_.num_envs) {
     throw std::invalid_argument("BatchSim::reset: " + std::to_string(episodes.size()) +

@@ -293,6 +293,8 @@ class BatchSim {
   void reset();
   // Starts episode episodes[e] of every env e (a trainer resuming from a checkpoint). Size: num_envs.
   void reset(std::span<const int32_t> episodes);
+  // Draws the episodes started from now on from `seed` instead of the config's (the next reset's scenes).
+  void reseed(uint64_t seed);
   // Restarts env `env` on a given scene (tests, replays); the env's episode counter is kept.
   void load_scene(int env, const physics::Scene& scene);
   // One env step of every env, in parallel. actions: num_envs x max_agents (padding slots ignored).

@@ -196,6 +196,8 @@ class World {
   void reset(uint64_t episode);
   // Starts the next episode (episode() + 1).
   void reset() { reset(episode_ + 1); }
+  // Episodes started from now on are drawn from the stream (seed, world index, episode).
+  void set_seed(uint64_t seed) { seed_ = seed; }
   // Starts an episode on a given scene (tests, replays). Counts must fit the configured maxima.
   void reset_with_scene(const Scene& scene, uint64_t episode = 0);
 
