@@ -279,6 +279,8 @@ class BatchEnv {
     batch::check_memory("num_envs = " + std::to_string(num_envs), config.estimated_bytes());
     sim_ = std::make_shared<batch::BatchSim>(config);
     const batch::Layout& L = sim_->layout();
+    layout_ = L;
+    config_ = sim_->config();
     actions_.resize(size_t(num_envs) * L.max_agents);
 
     // Every field viewed once: the buffers never move while the sim lives, and the arrays keep it alive
@@ -307,6 +309,7 @@ class BatchEnv {
   py::tuple reset(std::optional<py::handle> episodes, bool copy, const py::object& seed,
                   const py::object& options) {
     BusyGuard busy(busy_, "BatchEnv.reset");
+    check_open("reset");
     if (!options.is_none()) {
       if (!py::isinstance<py::dict>(options)) raise(PyExc_TypeError, "options: expected a dict or None");
       for (auto item : py::reinterpret_borrow<py::dict>(options)) {
@@ -321,6 +324,7 @@ class BatchEnv {
     const bool seeded = !seed.is_none();
     if (seeded) {
       const uint64_t s = seed_from(seed);
+      config_.seed = s;
       py::gil_scoped_release release;
       sim_->reseed(s);
     }
@@ -377,6 +381,7 @@ class BatchEnv {
 
   py::tuple step(const py::handle& actions, bool copy) {
     BusyGuard busy(busy_, "BatchEnv.step");
+    check_open("step");
     read_actions(actions);
     {
       py::gil_scoped_release release;
@@ -392,9 +397,11 @@ class BatchEnv {
   }
 
   py::dict observations(bool copy) const {
+    check_open("observations");
     return copy ? copy_dict(obs_) : py::dict(obs_.attr("copy")());
   }
   py::dict state(bool copy) const {
+    check_open("state");
     return copy ? copy_dict(fields_) : py::dict(fields_.attr("copy")());
   }
   py::dict field_docs() const {
@@ -446,6 +453,7 @@ class BatchEnv {
   // The scene env `env` is playing (copies): walls, doors, counts and spawns.
   py::dict scene(int env) {
     BusyGuard busy(busy_, "BatchEnv.scene");  // a step may be replacing the scene meanwhile
+    check_open("scene");
     if (env < 0 || env >= num_envs()) {
       raise(PyExc_IndexError, "env = " + std::to_string(env) + " is out of range: the batch has " +
                                   std::to_string(num_envs()) + " envs");
@@ -494,23 +502,43 @@ class BatchEnv {
   }
 
   int num_envs() const {
-    return sim_->num_envs();
+    return config_.num_envs;
   }
   const batch::Layout& layout() const {
-    return sim_->layout();
+    return layout_;
   }
   const batch::BatchConfig& config() const {
-    return sim_->config();
+    return config_;
+  }
+  // Releases the simulator: its worlds and buffers are freed once no array the env handed out is alive
+  // (those keep the memory they view). Everything but the properties then raises. Idempotent.
+  void close() {
+    BusyGuard busy(busy_, "BatchEnv.close");
+    if (closed_) return;
+    closed_ = true;
+    fields_ = py::dict();
+    obs_ = py::dict();
+    truncated_ = py::array();
+    terminated_view_ = py::array();
+    owner_ = py::capsule();
+    sim_.reset();
+  }
+  bool closed() const {
+    return closed_;
   }
   const std::string& scene_name() const {
     return scene_;
   }
   uintptr_t field_address(const std::string& name) const {
+    check_open("_field_address");
     if (!fields_.contains(name)) raise(PyExc_KeyError, "no batch field " + name);
     return uintptr_t(py::reinterpret_borrow<py::array>(fields_[name.c_str()]).data());
   }
 
  private:
+  void check_open(const char* what) const {
+    if (closed_) raise(PyExc_RuntimeError, std::string("BatchEnv.") + what + ": the env is closed");
+  }
   // Checks an (num_envs, max_agents, 5) integer array and copies it into actions_.
   void read_actions(const py::handle& value) {
     py::array a = as_array(value, "actions");
@@ -553,6 +581,9 @@ class BatchEnv {
   py::array truncated_;        // bool view of the batch's done flags: the horizon ends a game (a time limit)
   py::array terminated_view_;  // always false (Keeper::zeros): no game ends otherwise
   bool reset_called_ = false;  // a reset() without seed or episodes after the first starts new episodes
+  bool closed_ = false;
+  batch::Layout layout_;       // the batch's, kept for the properties after close()
+  batch::BatchConfig config_;  // likewise (its seed follows reset(seed=...))
   std::atomic<bool> busy_{false};
 };
 
@@ -910,6 +941,19 @@ reset(). Pass copy=True for arrays of your own.)doc")
       .def("scene", &BatchEnv::scene, py::arg("env"),
            "The scene env `env` plays now: walls (n, 6: centre, half extents, m), doors (cells), spawns.")
       .def("_field_address", &BatchEnv::field_address)
+      .def("close", &BatchEnv::close,
+           "Releases the simulator (its memory goes once no array the env handed out is alive); reset, step "
+           "and "
+           "the other methods then raise RuntimeError. Also called on leaving a `with` block.")
+      .def("__enter__", [](py::object self) { return self; })
+      .def(
+          "__exit__",
+          [](BatchEnv& e, const py::args&) {
+            e.close();
+            return false;
+          },
+          "Calls close().")
+      .def_property_readonly("closed", &BatchEnv::closed)
       .def_property_readonly("num_envs", &BatchEnv::num_envs)
       .def_property_readonly("max_agents", [](const BatchEnv& e) { return e.layout().max_agents; })
       .def_property_readonly("max_boxes", [](const BatchEnv& e) { return e.layout().max_boxes; })

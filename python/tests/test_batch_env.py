@@ -388,3 +388,18 @@ def test_reset_follows_gymnasium_seeding():
         env.reset(options=[1])
     with pytest.raises(ValueError, match="given twice"):
         env.reset(episodes=np.array([1, 2, 3]), options={"episodes": np.array([1, 2, 3])})
+
+
+def test_close_releases_the_env_and_with_closes_it():
+    with hns.BatchEnv(scene="quadrant", num_envs=2, threads=1) as env:
+        obs, _ = env.reset()
+        kept = obs["obs_self"]
+        assert not env.closed
+    assert env.closed
+    env.close()  # idempotent
+    assert env.num_envs == 2 and env.max_agents == 4 and env.seed == 1  # properties stay
+    for call in (lambda: env.reset(), lambda: env.step(np.zeros((2, 4, 5), np.uint8)), env.observations,
+                 env.state, lambda: env.scene(0)):
+        with pytest.raises(RuntimeError, match="closed"):
+            call()
+    assert kept.shape == (2, 4, 11) and np.isfinite(kept).all()  # an array handed out stays valid
