@@ -303,6 +303,19 @@ class BatchEnv {
     if (L.max_sites > 0)
       for (const char* name : kSiteObsFields) obs_[name] = fields_[name];
     truncated_ = make_view(s.done.data(), Shape{E}, owner_, /*as_bool=*/true);
+    // The final observation of every env whose episode ended in a step (Gymnasium's final_obs): the batch
+    // keeps a copy of each observation field, viewed like the field.
+    std::vector<std::string> obs_names;
+    for (auto item : obs_) obs_names.push_back(py::str(item.first));
+    sim_->keep_final(obs_names);
+    for (const std::string& name : obs_names) {
+      py::array field = py::reinterpret_borrow<py::array>(obs_[name.c_str()]);
+      Shape shape(field.shape(), field.shape() + field.ndim());
+      py::array view(field.dtype(), shape, Shape{}, sim_->final_field(name), owner_);
+      view.attr("flags").attr("writeable") = false;
+      final_obs_[name.c_str()] = view;
+    }
+    final_mask_view_ = make_view(sim_->final_mask().data(), Shape{E}, owner_, /*as_bool=*/true);
     terminated_view_ = make_view(keep->zeros.data(), Shape{E}, owner_, /*as_bool=*/true);
   }
 
@@ -447,6 +460,8 @@ class BatchEnv {
     for (size_t k = 0; k < std::size(float_names); ++k) ended[float_names[k]] = floats[k];
     d["finished"] = ended;
     d["unstable_resets"] = sim_->unstable_resets();
+    d["final_obs"] = copy ? copy_dict(final_obs_) : py::dict(final_obs_.attr("copy")());
+    d["_final_obs"] = copy ? py::object(final_mask_view_.attr("copy")()) : py::object(final_mask_view_);
     return d;
   }
 
@@ -520,6 +535,8 @@ class BatchEnv {
     obs_ = py::dict();
     truncated_ = py::array();
     terminated_view_ = py::array();
+    final_obs_ = py::dict();
+    final_mask_view_ = py::array();
     owner_ = py::capsule();
     sim_.reset();
   }
@@ -580,6 +597,8 @@ class BatchEnv {
   py::dict fields_, docs_, obs_;
   py::array truncated_;        // bool view of the batch's done flags: the horizon ends a game (a time limit)
   py::array terminated_view_;  // always false (Keeper::zeros): no game ends otherwise
+  py::dict final_obs_;         // views of the batch's kept final observations (keep_final)
+  py::array final_mask_view_;  // bool: the env's episode ended in the last step
   bool reset_called_ = false;  // a reset() without seed or episodes after the first starts new episodes
   bool closed_ = false;
   batch::Layout layout_;       // the batch's, kept for the properties after close()

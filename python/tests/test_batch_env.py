@@ -403,3 +403,26 @@ def test_close_releases_the_env_and_with_closes_it():
         with pytest.raises(RuntimeError, match="closed"):
             call()
     assert kept.shape == (2, 4, 11) and np.isfinite(kept).all()  # an array handed out stays valid
+
+
+def test_final_observation_is_the_last_step_before_the_auto_reset():
+    # Horizon 9 and 10 have the same 4-step preparation phase, so both envs play the same first 9 steps: the
+    # final observation of the first (which auto-resets at step 9) is the second's observation after step 9.
+    short = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=3, horizon=9)
+    long = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=3, horizon=10)
+    rng = np.random.default_rng(0)
+    for t in range(9):
+        actions = rng.integers(0, 11, size=(2, short.max_agents, 5), dtype=np.uint8)
+        actions[..., 3:] &= 1
+        obs, _, _, truncated, info = short.step(actions)
+        reference, *_ = long.step(actions)
+        assert info["_final_obs"].dtype == bool and info["_final_obs"].shape == (2,)
+        assert bool(info["_final_obs"].all()) == (t == 8) and bool(truncated.all()) == (t == 8)
+    assert set(info["final_obs"]) == set(obs)
+    for key, final in info["final_obs"].items():
+        np.testing.assert_array_equal(final, reference[key], err_msg=key)
+    assert (obs["step_count"] == 0).all() and (obs["episode"] == 1).all(), "obs is the next episode's"
+    assert (info["final_obs"]["episode"] == 0).all()
+    # The next step's mask is clear again.
+    _, _, _, _, info = short.step(np.zeros((2, short.max_agents, 5), np.uint8))
+    assert not info["_final_obs"].any()

@@ -169,6 +169,7 @@ void BatchSim::reseed(uint64_t seed) {
 }
 
 void BatchSim::reset(std::span<const int32_t> episodes) {
+  std::fill(final_mask_.begin(), final_mask_.end(), uint8_t(0));
   if (!episodes.empty() && int(episodes.size()) != config_.num_envs) {
     throw std::invalid_argument("BatchSim::reset: " + std::to_string(episodes.size()) +
                                 " episode numbers for " + std::to_string(config_.num_envs) + " envs");
@@ -189,12 +190,33 @@ void BatchSim::reset(std::span<const int32_t> episodes) {
   finished_.clear();
 }
 
+void BatchSim::keep_final(std::span<const std::string> fields) {
+  for (const std::string& name : fields) {
+    bool found = false;
+    state_.for_each_field([&](const char* field, std::span<const uint8_t> bytes) {
+      if (name != field) return;
+      found = true;
+      const size_t env_bytes = bytes.size() / size_t(config_.num_envs);
+      final_.push_back({name, bytes.data(), env_bytes, std::vector<uint8_t>(bytes.size(), 0)});
+    });
+    if (!found) throw std::invalid_argument("BatchSim::keep_final: no field " + name);
+  }
+  final_mask_.assign(size_t(config_.num_envs), 0);
+}
+
+const uint8_t* BatchSim::final_field(const std::string& name) const {
+  for (const FinalField& f : final_)
+    if (f.name == name) return f.copy.data();
+  throw std::invalid_argument("BatchSim::final_field: " + name + " is not kept (keep_final)");
+}
+
 void BatchSim::step(std::span<const AgentAction> actions) {
   if (actions.size() != size_t(config_.num_envs) * layout_.max_agents) {
     throw std::invalid_argument(
         "BatchSim::step: got " + std::to_string(actions.size()) + " actions, expected " +
         std::to_string(size_t(config_.num_envs) * layout_.max_agents) + " (envs x max agents)");
   }
+  std::fill(final_mask_.begin(), final_mask_.end(), uint8_t(0));
   arena_->execute([&] {
     tbb::parallel_for(
         tbb::blocked_range<int>(0, config_.num_envs, config_.envs_per_task),
@@ -1183,6 +1205,15 @@ void BatchSim::end_episode_env(int env, bool discarded) {
     st.max_agent_move = std::max(st.max_agent_move, std::sqrt(dx * dx + dy * dy + dz * dz));
   }
   sc.finished = true;
+  if (!final_.empty() && !discarded) {
+    // The episode's last observation, before the reset below replaces it.
+    observe_env(env);
+    for (FinalField& f : final_) {
+      const size_t at = size_t(env) * f.env_bytes;
+      std::memcpy(f.copy.data() + at, f.source + at, f.env_bytes);
+    }
+    final_mask_[size_t(env)] = 1;
+  }
   reset_env(env, uint64_t(s.episode[env]) + 1);
   s.done[env] = 1;
 }

@@ -308,6 +308,16 @@ class BatchSim {
   const BatchState& state() const { return state_; }
   // Episodes that ended in the last step(), in env order.
   std::span<const EpisodeStats> finished() const { return finished_; }
+  // Final observations (Gymnasium's): from now on, for every env whose episode ends in a step (and is not
+  // discarded for numerical trouble), the named BatchState fields are observed once more and kept as they
+  // were after the episode's last step, before the env starts its next episode in the same step. Costs one
+  // observation pass and one copy per ended episode; nothing while no episode ends. Throws
+  // std::invalid_argument for a name that is not a field.
+  void keep_final(std::span<const std::string> fields);
+  // The kept copy of field `name` (the field's layout and size), and per env 1 where its episode ended in
+  // the last step (the copy holds that episode's last observation) and 0 elsewhere (stale).
+  const uint8_t* final_field(const std::string& name) const;
+  std::span<const uint8_t> final_mask() const { return final_mask_; }
   // Episodes reset after numerical trouble since construction.
   int64_t unstable_resets() const;
   const PhaseTimes& phase_times() const { return phase_times_; }
@@ -370,6 +380,14 @@ class BatchSim {
   std::vector<std::unique_ptr<physics::World>> worlds_;
   std::vector<EnvScratch> scratch_;  // per env: finished-episode record, timers, counters
   std::vector<EpisodeStats> finished_;
+  struct FinalField {
+    std::string name;
+    const uint8_t* source;  // the BatchState field
+    size_t env_bytes;       // one env's share
+    std::vector<uint8_t> copy;
+  };
+  std::vector<FinalField> final_;  // keep_final's fields
+  std::vector<uint8_t> final_mask_;
   PhaseTimes phase_times_;
   bool tracing_ = false;
   std::unique_ptr<tbb::task_arena> arena_;  // config.threads workers, reused by every step
