@@ -99,6 +99,8 @@ BatchEnv.observation_space = _cached("_observation_space", _observation_space)
 BatchEnv.single_action_space = _cached("_single_action_space", _single_action_space)
 BatchEnv.action_space = _cached("_action_space", _action_space)
 
+from .parallel import ParallelEnv  # noqa: E402,F401  (one game in PettingZoo's parallel API)
+
 
 def read_metrics(path):
     """The iterations of a run's metrics.jsonl as a list of dicts, one per iteration, in file order.

@@ -426,3 +426,33 @@ def test_final_observation_is_the_last_step_before_the_auto_reset():
     # The next step's mask is clear again.
     _, _, _, _, info = short.step(np.zeros((2, short.max_agents, 5), np.uint8))
     assert not info["_final_obs"].any()
+
+
+def test_parallel_env_follows_pettingzoos_contract():
+    env = hns.ParallelEnv(scene="quadrant", seed=2, horizon=12)
+    assert env.possible_agents == ["agent_%d" % i for i in range(4)] and env.agents == []
+    observations, infos = env.reset(seed=5)
+    assert env.agents and set(observations) == set(env.agents) == set(infos)
+    assert {infos[a]["hider"] for a in env.agents} == {True, False}, "both teams play"
+    for a in env.agents:
+        assert env.observation_space(a).contains(observations[a]), a
+    steps, ended = 0, False
+    while env.agents:
+        actions = {a: env.action_space(a).sample() for a in env.agents}
+        observations, rewards, terminations, truncations, infos = env.step(actions)
+        steps += 1
+        assert set(observations) == set(rewards) == set(terminations) == set(truncations) == set(infos)
+        for a in observations:
+            assert env.observation_space(a).contains(observations[a]), a
+        hider_rewards = {rewards[a] for a in rewards if infos[a]["hider"]}
+        seeker_rewards = {rewards[a] for a in rewards if not infos[a]["hider"]}
+        assert len(hider_rewards) == 1 and hider_rewards == {-r for r in seeker_rewards}, "team rewards"
+        ended = all(truncations.values())
+    assert steps == 12 and ended and not any(terminations.values())
+    assert all(int(o["step_count"]) == 12 for o in observations.values()), "the episode's last observation"
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step({})
+    observations, infos = env.reset()
+    assert all(int(o["step_count"]) == 0 for o in observations.values())
+    assert all(int(o["episode"]) == 1 for o in observations.values()), "the next episode, none skipped"
+    env.close()
