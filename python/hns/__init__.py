@@ -99,6 +99,20 @@ BatchEnv.observation_space = _cached("_observation_space", _observation_space)
 BatchEnv.single_action_space = _cached("_single_action_space", _single_action_space)
 BatchEnv.action_space = _cached("_action_space", _action_space)
 
+# Gymnasium's metadata: auto-reset inside the step that ends a game (info["final_obs"] keeps its last
+# observation); no render mode yet.
+BatchEnv.metadata = {"render_modes": [], "autoreset_mode": "same-step"}
+BatchEnv.render_mode = None
+
+
+def _render(self):
+    """Not available yet: record episodes with hns.record() and view them with `hns replay FILE --html`."""
+    raise NotImplementedError("hns has no render() yet: record episodes with hns.record(...) and view them with "
+                              "`hns replay FILE --html`")
+
+
+BatchEnv.render = _render
+
 from .parallel import ParallelEnv  # noqa: E402,F401  (one game in PettingZoo's parallel API)
 
 

@@ -456,3 +456,10 @@ def test_parallel_env_follows_pettingzoos_contract():
     assert all(int(o["step_count"]) == 0 for o in observations.values())
     assert all(int(o["episode"]) == 1 for o in observations.values()), "the next episode, none skipped"
     env.close()
+
+
+def test_gymnasium_metadata_and_render_say_what_there_is():
+    env = hns.BatchEnv(scene="quadrant", num_envs=1, threads=1)
+    assert env.metadata["autoreset_mode"] == "same-step" and env.render_mode is None
+    with pytest.raises(NotImplementedError, match="hns replay"):
+        env.render()
