@@ -86,6 +86,12 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  // Likewise an option before any command (CLI11 would only say that a subcommand is required).
+  if (argc > 1 && argv[1][0] == '-' && std::string(argv[1]) != "-h" && std::string(argv[1]) != "--help") {
+    std::cerr << "hns: unknown option '" << argv[1] << "' before a command: hns [--help | --version] COMMAND "
+              << "[OPTIONS] (hns --help lists the commands)\n";
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

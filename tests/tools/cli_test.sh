@@ -109,6 +109,7 @@ expect_fail 2 "seed = 18446744073709551616" bench --seed 18446744073709551616 --
 expect_fail 2 "cannot be placed.*12 boxes" bench --scene quadrant --boxes 12 --steps 1
 expect_fail 2 "needs about .* GB of memory" train --scene full --model paper --envs 11000 --out "$tmp/huge-mem"
 expect_fail 2 "unknown command 'frobnicate'" frobnicate
+expect_fail 2 "unknown option '--bogus' before a command" --bogus
 if "$hns" bench --envs 1 --steps 1 --threads 1024 --json "$tmp/t.json" 2>&1 | grep -q "1024 threads requested" &&
    ! grep -q '"threads": 1024' "$tmp/t.json"; then
   passed=$((passed + 1))
