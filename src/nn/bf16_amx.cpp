@@ -65,10 +65,6 @@ struct Hardware {
 
 // ---- the same tiles in scalar code
 
-float flush(float x) {
-  return std::fpclassify(x) == FP_SUBNORMAL ? std::copysign(0.0f, x) : x;
-}
-
 struct Emulated {
   struct Tiles {
     alignas(64) unsigned char t[8][kTileRows][kTileBytes];
@@ -108,22 +104,18 @@ struct Emulated {
       for (int n = 0; n < 16; ++n) {
         float even = 0.0f, odd = 0.0f;
         for (int p = 0; p < kTilePairs; ++p) {
-          even = flush(std::fma(flush(to_float(a[m][2 * p])), flush(to_float(b[p][2 * n])), even));
-          odd = flush(std::fma(flush(to_float(a[m][2 * p + 1])), flush(to_float(b[p][2 * n + 1])), odd));
+          even = flush_denormal(
+              std::fma(flush_denormal(to_float(a[m][2 * p])), flush_denormal(to_float(b[p][2 * n])), even));
+          odd = flush_denormal(std::fma(flush_denormal(to_float(a[m][2 * p + 1])),
+                                        flush_denormal(to_float(b[p][2 * n + 1])), odd));
         }
-        c[m][n] = flush(c[m][n] + flush(even + odd));
+        c[m][n] = flush_denormal(c[m][n] + flush_denormal(even + odd));
       }
     std::memcpy(tiles().t[C], c, sizeof(c));
   }
 };
 
 // ---- the kernel
-
-// Columns of the panel starting at n0 (a multiple of 16), as bf16_gemm.cpp lays panels out.
-int panel_width(int n, int n0) {
-  const int w = std::min(n - n0, kPanel);
-  return (w + kVecCols - 1) / kVecCols * kVecCols;
-}
 
 // One C tile's place: vr x vc valid elements at c. A partial tile goes through a 16 x 16 scratch, filled
 // (before any tile instruction) and emptied (after the last) by plain code, so no call runs while tiles

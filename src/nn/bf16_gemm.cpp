@@ -47,15 +47,6 @@ int padded_rows(int rows, Kernel kern) {
 ptrdiff_t transposed_rows(int rows) {
   return (rows + kVecCols - 1) / kVecCols * kVecCols;
 }
-// Columns of the last panel (a multiple of 16) for n columns.
-int panel_width(int n, int n0) {
-  const int w = n - n0 < kPanel ? n - n0 : kPanel;
-  return (w + kVecCols - 1) / kVecCols * kVecCols;
-}
-
-bool is_denormal(float x) {
-  return std::fpclassify(x) == FP_SUBNORMAL;
-}
 
 // ---- vector conversion (float -> bf16, round to nearest even, as from_float)
 
@@ -327,11 +318,6 @@ bool detect() {
          __builtin_cpu_supports("avx512bf16");
 }
 
-// Flush a denormal to a zero of its sign (vdpbf16ps and vcvtne2ps2bf16 treat denormals so).
-float flush(float x) {
-  return is_denormal(x) ? std::copysign(0.0f, x) : x;
-}
-
 }  // namespace
 
 bool available() {
@@ -340,9 +326,13 @@ bool available() {
 }
 
 bf16_t from_float(float x) {
-  const uint32_t u = std::bit_cast<uint32_t>(flush(x));
+  const uint32_t u = std::bit_cast<uint32_t>(flush_denormal(x));
   if (std::isnan(x)) return static_cast<bf16_t>((u >> 16) | 0x40u);
   return static_cast<bf16_t>((u + 0x7FFFu + ((u >> 16) & 1u)) >> 16);
+}
+
+float flush_denormal(float x) {
+  return std::fpclassify(x) == FP_SUBNORMAL ? std::copysign(0.0f, x) : x;
 }
 
 float to_float(bf16_t x) {
@@ -462,8 +452,8 @@ void gemm_reference(const bf16_t* a, int rows, int k, const bf16_t* b, int n, fl
       for (int p = 0; p < k2; ++p) {
         const bf16_t* bp = panel + (static_cast<ptrdiff_t>(p) * panel_width(n, n0) + (j - n0)) * 2;
         const bf16_t* ap = a + m * lda + 2 * p;
-        acc = flush(std::fma(flush(to_float(ap[1])), flush(to_float(bp[1])), acc));
-        acc = flush(std::fma(flush(to_float(ap[0])), flush(to_float(bp[0])), acc));
+        acc = flush_denormal(std::fma(flush_denormal(to_float(ap[1])), flush_denormal(to_float(bp[1])), acc));
+        acc = flush_denormal(std::fma(flush_denormal(to_float(ap[0])), flush_denormal(to_float(bp[0])), acc));
       }
       c[m * ldc + j] = acc;
     }

@@ -53,6 +53,15 @@ void set_kernel(Kernel k);
 // Float to bf16, round to nearest even (NaN stays NaN), and back (exact).
 bf16_t from_float(float x);
 float to_float(bf16_t x);
+// A denormal as a zero of its sign, anything else as it is (how the bf16 instructions treat denormals).
+float flush_denormal(float x);
+
+// Columns the packed panel starting at column n0 (a multiple of kPanel) of n holds: kPanel, or the last
+// panel's columns rounded up to whole vectors.
+inline int panel_width(int n, int n0) {
+  const int w = n - n0 < kPanel ? n - n0 : kPanel;
+  return (w + kVecCols - 1) / kVecCols * kVecCols;
+}
 
 // Elements of a packed B of k rows and n columns.
 size_t packed_elems(int k, int n);
