@@ -44,18 +44,19 @@ size_t address_space_left_bytes() {
 
 void check_memory(const std::string& what, size_t bytes) {
   char buf[320];
-  const size_t available = available_memory_bytes();
-  if (available > 0 && bytes > available) {
-    std::snprintf(buf, sizeof buf, "%s needs about %.1f GB of memory, this machine has %.1f GB available",
-                  what.c_str(), double(bytes) / (1 << 30), double(available) / (1 << 30));
-    throw physics::ConfigError(buf);
-  }
+  // The process's own limit first, so that a run it refuses says so whatever memory the machine has free.
   const size_t as_left = address_space_left_bytes();
   if (bytes > as_left) {
     std::snprintf(buf, sizeof buf,
                   "%s needs about %.1f GB of memory, and this process's address-space limit (ulimit -v) "
                   "leaves %.1f GB",
                   what.c_str(), double(bytes) / (1 << 30), double(as_left) / (1 << 30));
+    throw physics::ConfigError(buf);
+  }
+  const size_t available = available_memory_bytes();
+  if (available > 0 && bytes > available) {
+    std::snprintf(buf, sizeof buf, "%s needs about %.1f GB of memory, this machine has %.1f GB available",
+                  what.c_str(), double(bytes) / (1 << 30), double(available) / (1 << 30));
     throw physics::ConfigError(buf);
   }
 }
