@@ -2,6 +2,8 @@
 
 #include <oneapi/tbb/parallel_for.h>
 
+#include <algorithm>
+
 namespace hns::nn {
 namespace {
 
@@ -19,6 +21,7 @@ size_t align_elems(size_t n) {
 // Per-thread bf16 scratch for the activations of one product (A, and B for a weight gradient).
 struct Scratch {
   FloatBuffer a, b;
+  FloatBuffer panel;  // fp32: a padded panel of the rows after the last whole one, x then y
   static bf16_t* take(FloatBuffer& buf, size_t elems) {
     const size_t floats = (elems + 1) / 2;
     if (buf.size() < floats) buf.resize(floats);
@@ -68,13 +71,51 @@ void PackedWeights::pack(const float* values, bool with_transposed) {
   has_transposed_ = with_transposed;
 }
 
+namespace {
+
+// y (+)= x W in fp32 with each row's result independent of how many rows the product has. Eigen computes the
+// rows beyond the last whole 4-row panel by another kernel whose sums round differently, so a row's bits
+// would depend on its position in the product (an inference chunk of 16 rows against a training chunk of
+// 150, say, and the rollout's log-probabilities would not be those the update recomputes). Whole panels of
+// kRowPanel rows go to Eigen; the rest is padded with zero rows in a scratch panel.
+constexpr int kRowPanel = 8;
+
+void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {
+  const ConstWeights wm(w, x.cols, y.cols);
+  const int whole = x.rows / kRowPanel * kRowPanel;
+  if (whole > 0) {
+    Mat top(y.data, whole, y.cols, y.stride);
+    if (accumulate) {
+      top.map().noalias() += CMat(x.data, whole, x.cols, x.stride).map() * wm;
+    } else {
+      top.map().noalias() = CMat(x.data, whole, x.cols, x.stride).map() * wm;
+    }
+  }
+  const int rest = x.rows - whole;
+  if (rest == 0) return;
+  const size_t xs = static_cast<size_t>(kRowPanel) * x.cols, ys = static_cast<size_t>(kRowPanel) * y.cols;
+  if (scratch.panel.size() < xs + ys) scratch.panel.resize(xs + ys);
+  float* xp = scratch.panel.data();
+  float* yp = xp + xs;
+  std::fill(xp, xp + xs, 0.0f);
+  for (int r = 0; r < rest; ++r) std::copy_n(x.row(whole + r), x.cols, xp + static_cast<size_t>(r) * x.cols);
+  Mat panel(yp, kRowPanel, y.cols, y.cols);
+  if (accumulate) {
+    std::fill(yp, yp + ys, 0.0f);
+    for (int r = 0; r < rest; ++r)
+      std::copy_n(y.row(whole + r), y.cols, yp + static_cast<size_t>(r) * y.cols);
+    panel.map().noalias() += CMat(xp, kRowPanel, x.cols, x.cols).map() * wm;
+  } else {
+    panel.map().noalias() = CMat(xp, kRowPanel, x.cols, x.cols).map() * wm;
+  }
+  for (int r = 0; r < rest; ++r) std::copy_n(yp + static_cast<size_t>(r) * y.cols, y.cols, y.row(whole + r));
+}
+
+}  // namespace
+
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate) {
   if (!p.bf16()) {
-    if (accumulate) {
-      y.map().noalias() += x.map() * ConstWeights(w, x.cols, y.cols);
-    } else {
-      y.map().noalias() = x.map() * ConstWeights(w, x.cols, y.cols);
-    }
+    matmul_fp32(w, x, y, accumulate);
     return;
   }
   const ProductMatrix& m = p.packed->info(id);
