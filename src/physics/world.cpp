@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "physics/ode_runtime.hpp"
+#include "physics/sphere_convex.hpp"
 
 namespace hns::physics {
 namespace {
@@ -52,6 +53,8 @@ const double kRampPlanes[20] = {
     1,  0,         0,         kH,                                              // right cap
 };
 unsigned int kRampPolygons[] = {4, 0, 3, 2, 1, 4, 0, 1, 5, 4, 4, 3, 4, 5, 2, 3, 0, 4, 3, 3, 1, 2, 5};
+const int kRampEdges[18] = {0, 1, 1, 2, 2, 3, 3, 0, 0, 4, 1, 5, 4, 5, 3, 4, 2, 5};
+const ConvexShape kRampShape{kRampPlanes, kRampPoints, kRampEdges};
 
 // A geom's ODE user data: its friction, and for an agent's broad-phase proxy the geoms that really collide
 // (its body sphere and two arms).
@@ -110,6 +113,8 @@ struct World::Ode {
   std::vector<dJointID> grab;  // per agent, nullptr = none
   GeomInfo agent_info{kAgentFriction}, box_info{kBoxFriction};
   GeomInfo ramp_info{kRampFriction}, floor_info{kFloorFriction}, wall_info{kQuadrantWallFriction};
+  double floor_cfm = 0;   // PhysicsConfig::floor_cfm
+  double slip_speed = 0;  // PhysicsConfig::slip_speed
 
   // Object o of an episode with `num_boxes` boxes: boxes first, then ramps (the slot vectors hold the
   // maxima, so a ramp's slot does not follow the last box slot).
@@ -126,9 +131,34 @@ GeomInfo* info(dGeomID g) {
 
 // Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
 // max(μ1, μ2) (SPEC §1.2, Coulomb pyramid scaled by the normal force).
+// A sphere (an agent's body or arm) against the ramp's wedge, the one convex of the world, by the exact
+// collider (sphere_convex.hpp) instead of ODE's; the contact as dCollide(g1, g2) would give it (normal out of
+// g2 into g1). 0 or 1 contacts.
+int collide_sphere_ramp(dGeomID g1, dGeomID g2, dContactGeom* contact) {
+  const bool sphere_first = dGeomGetClass(g1) == dSphereClass;
+  dGeomID sphere = sphere_first ? g1 : g2;
+  dGeomID ramp = sphere_first ? g2 : g1;
+  SphereContact c;
+  if (!collide_sphere_convex(dGeomGetPosition(sphere), dGeomSphereGetRadius(sphere), dGeomGetPosition(ramp),
+                             dGeomGetRotation(ramp), kRampShape, c)) {
+    return 0;
+  }
+  const double sign = sphere_first ? 1.0 : -1.0;
+  for (int k = 0; k < 3; ++k) contact->pos[k] = c.pos[k], contact->normal[k] = sign * c.normal[k];
+  contact->pos[3] = contact->normal[3] = 0;
+  contact->depth = c.depth;
+  contact->g1 = g1;
+  contact->g2 = g2;
+  contact->side1 = contact->side2 = -1;
+  return 1;
+}
+
 void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b2) {
   dContact contact[kMaxContactsPerPair];
-  const int n = dCollide(g1, g2, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
+  const int c1 = dGeomGetClass(g1), c2 = dGeomGetClass(g2);
+  const int n = (c1 == dSphereClass && c2 == dConvexClass) || (c1 == dConvexClass && c2 == dSphereClass)
+                    ? collide_sphere_ramp(g1, g2, &contact[0].geom)
+                    : dCollide(g1, g2, kMaxContactsPerPair, &contact[0].geom, sizeof(dContact));
   if (n == 0) return;
   const double mu = std::max(info(g1)->friction, info(g2)->friction);
   for (int i = 0; i < n; ++i) {
@@ -143,6 +173,33 @@ void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b
     }
     contact[i].surface.mode = dContactApprox1;
     contact[i].surface.mu = mu;
+    // A box's or ramp's floor contacts are soft (docs/physics.md "Contacts"): its weight spreads over its
+    // bottom corners by their depth, as in MuJoCo, instead of the rigid solver's arbitrary split, which
+    // could put the floor's friction on any corner and turn a pushed ramp or long box the wrong way. (An
+    // agent touches the floor at one point: it stays rigid and at its exact height.)
+    if (ode->floor_cfm > 0 && (dGeomGetClass(g1) == dPlaneClass || dGeomGetClass(g2) == dPlaneClass) &&
+        info(g1) != &ode->agent_info && info(g2) != &ode->agent_info) {
+      contact[i].surface.mode |= dContactSoftCFM;
+      contact[i].surface.soft_cfm = ode->floor_cfm;
+    }
+    // A contact that slides has its friction along the slip and none across it (Coulomb: a sliding contact
+    // has no grip left sideways). ODE's fixed pyramid would hold a body sliding along x against any sideways
+    // push below μN, so an agent running along a ramp's side or a box's face was never deflected.
+    if (ode->slip_speed > 0) {
+      dVector3 v1 = {0, 0, 0}, v2 = {0, 0, 0};
+      if (b1 != nullptr) dBodyGetPointVel(b1, g.pos[0], g.pos[1], g.pos[2], v1);
+      if (b2 != nullptr) dBodyGetPointVel(b2, g.pos[0], g.pos[1], g.pos[2], v2);
+      double slip[3] = {v1[0] - v2[0], v1[1] - v2[1], v1[2] - v2[2]};
+      const double along_normal = slip[0] * g.normal[0] + slip[1] * g.normal[1] + slip[2] * g.normal[2];
+      for (int k = 0; k < 3; ++k) slip[k] -= along_normal * g.normal[k];
+      const double speed = std::sqrt(slip[0] * slip[0] + slip[1] * slip[1] + slip[2] * slip[2]);
+      if (speed > ode->slip_speed) {
+        contact[i].surface.mode |= dContactFDir1 | dContactMu2;
+        for (int k = 0; k < 3; ++k) contact[i].fdir1[k] = slip[k] / speed;
+        contact[i].fdir1[3] = 0;
+        contact[i].surface.mu2 = 0;
+      }
+    }
     dJointID joint = dJointCreateContact(ode->world, ode->contacts, &contact[i]);
     dJointAttach(joint, b1, b2);
   }
@@ -396,6 +453,9 @@ void WorldConfig::validate() const {
   check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,
         "must be > 0");
+  check(physics.floor_cfm >= 0 && physics.floor_cfm <= 0.1, "physics.floor_cfm", physics.floor_cfm,
+        "must be in [0, 0.1]");
+  check(physics.slip_speed >= 0, "physics.slip_speed", physics.slip_speed, "must be >= 0 m/s (0: off)");
 }
 
 World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
@@ -415,6 +475,8 @@ World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
   dWorldSetQuickStepNumIterations(o.world, config_.physics.solver_iterations);
   dWorldSetContactSurfaceLayer(o.world, config_.physics.contact_surface_layer);
   dWorldSetContactMaxCorrectingVel(o.world, config_.physics.max_correcting_vel);
+  o.floor_cfm = config_.physics.floor_cfm;
+  o.slip_speed = config_.physics.slip_speed;
   dWorldSetAutoDisableFlag(o.world, 0);
   o.dynamic_space = dSimpleSpaceCreate(nullptr);
   o.static_space = dSimpleSpaceCreate(nullptr);

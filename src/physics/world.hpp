@@ -30,6 +30,12 @@ struct PhysicsConfig {
   double cfm = 1e-5;                     // constraint force mixing
   double contact_surface_layer = 0.001;  // m of allowed penetration, steadies resting contacts
   double max_correcting_vel = 5.0;       // m/s, cap on contact depenetration speed
+  // Contacts with the floor are soft by this constraint force mixing (ODE's CFM), so that a box's or ramp's
+  // weight spreads over its bottom corners as MuJoCo's soft contacts spread it (docs/physics.md); 0: rigid.
+  double floor_cfm = 1.3e-3;
+  // A contact sliding faster than this (m/s) has its friction along the slip and none across it; slower
+  // ones keep ODE's fixed friction pyramid (static friction both ways). 0: the fixed pyramid always.
+  double slip_speed = 0.1;
   // Boxes and ramps slower than these for sleep_substeps substeps leave the solver until touched.
   bool sleep = true;
   double sleep_linear_speed = 0.02;   // m/s

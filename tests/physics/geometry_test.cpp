@@ -1,10 +1,13 @@
 // The scalar vision, line-of-sight and lidar reference on hand-built scenes (SPEC.md §4.1, §4.2, §14.6-7).
 #include "physics/geometry.hpp"
+#include "physics/sphere_convex.hpp"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
+#include <random>
 #include <vector>
 
 namespace hns::physics {
@@ -207,4 +210,52 @@ TEST(Geometry, GrownWedgeMovesEveryFace) {
 }
 
 }  // namespace
+}  // namespace hns::physics
+
+namespace hns::physics {
+
+// The exact sphere-convex contact (sphere_convex.hpp) on a unit cube: the depth is the radius less the true
+// distance to the surface (for a box, the clamped point), and the normal points from the
+// surface's closest point to the centre, including where that point is on an edge or a corner, where ODE's
+// collider got the normal wrong.
+TEST(SphereConvex, DepthAndNormalMatchTheClosestSurfacePoint) {
+  const double planes[24] = {1, 0,  0, 0.5, -1, 0, 0, 0.5, 0, 1, 0,  0.5,
+                             0, -1, 0, 0.5, 0,  0, 1, 0.5, 0, 0, -1, 0.5};
+  std::vector<double> points;
+  for (int i = 0; i < 8; ++i) {
+    points.insert(points.end(), {i & 1 ? 0.5 : -0.5, i & 2 ? 0.5 : -0.5, i & 4 ? 0.5 : -0.5});
+  }
+  const int edges[24] = {0, 1, 2, 3, 4, 5, 6, 7, 0, 2, 1, 3, 4, 6, 5, 7, 0, 4, 1, 5, 2, 6, 3, 7};
+  const ConvexShape cube{planes, points, edges};
+  const double pos[3] = {10, 20, 0.5};
+  const double c = std::cos(0.3), s = std::sin(0.3);
+  const double rot[12] = {c, -s, 0, 0, s, c, 0, 0, 0, 0, 1, 0};  // yaw 0.3
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-0.8, 0.8);
+  int outside = 0;
+  for (int trial = 0; trial < 300; ++trial) {
+    const double local[3] = {u(rng), u(rng), u(rng)};
+    const bool inside = std::abs(local[0]) < 0.5 && std::abs(local[1]) < 0.5 && std::abs(local[2]) < 0.5;
+    if (inside) continue;
+    ++outside;
+    // The closest surface point by clamping (exact for a box), then the world centre.
+    double q[3];
+    for (int k = 0; k < 3; ++k) q[k] = std::clamp(local[k], -0.5, 0.5);
+    const double dist = std::hypot(local[0] - q[0], local[1] - q[1], local[2] - q[2]);
+    const double centre[3] = {pos[0] + c * local[0] - s * local[1], pos[1] + s * local[0] + c * local[1],
+                              pos[2] + local[2]};
+    SphereContact contact;
+    const double radius = 0.4;
+    const bool hit = collide_sphere_convex(centre, radius, pos, rot, cube, contact);
+    ASSERT_EQ(hit, dist < radius) << "trial " << trial;
+    if (!hit) continue;
+    EXPECT_NEAR(contact.depth, radius - dist, 1e-12);
+    const double n_local[3] = {(local[0] - q[0]) / dist, (local[1] - q[1]) / dist, (local[2] - q[2]) / dist};
+    EXPECT_NEAR(contact.normal[0], c * n_local[0] - s * n_local[1], 1e-9);
+    EXPECT_NEAR(contact.normal[1], s * n_local[0] + c * n_local[1], 1e-9);
+    EXPECT_NEAR(contact.normal[2], n_local[2], 1e-9);
+  }
+  EXPECT_GT(outside, 100);
+}
+
 }  // namespace hns::physics

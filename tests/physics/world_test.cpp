@@ -95,6 +95,35 @@ TEST(WorldMotion, AgentDrivesUpRampOntoBox) {
   EXPECT_FALSE(world.unstable());
 }
 
+// A free ramp's vertical side caps are not a way up (MuJoCo, the original's engine: the agent pushes the
+// ramp aside and its centre stays below 0.22 m): an agent 1 m beside a free ramp in the arena, full force
+// towards it for 25 steps, from either side and in each of four facings (its arms lead, trail or point along
+// the cap), stays below 0.3 m. It climbed to 0.63 m while the rigid floor contacts turned the pushed ramp
+// the wrong way, its slope towards the agent (physics_parity_test has MuJoCo's figures).
+TEST(WorldMotion, AgentDoesNotClimbAFreeRampsSideCap) {
+  for (const int side : {-1, 1}) {
+    for (int facing = 0; facing < 4; ++facing) {
+      World world(test_config(), 1, 0);
+      Scene scene = open_scene({agent_at(3.0 + side, 3.0)}, {}, {}, {ramp_at(3.0, 3.0)});
+      for (const double x : {-0.05, 6.05})
+        scene.wall_boxes.push_back(wall_at(x, 3.0, 0.05, 3.0, kOuterWallHeight));
+      for (const double y : {-0.05, 6.05})
+        scene.wall_boxes.push_back(wall_at(3.0, y, 3.0, 0.05, kOuterWallHeight));
+      world.reset_with_scene(scene);
+      world.set_ramp_pose(0, 3.0, 3.0, 0.25, 0.0);  // caps face -x and +x
+      world.set_agent_pose(0, 3.0 + side, 3.0, kAgentRadius, facing * M_PI / 2);
+      const AgentAction act = move(side < 0 ? 10 : 0, 5);
+      double max_z = 0;
+      for (int k = 0; k < 25; ++k) {
+        world.step({&act, 1});
+        max_z = std::max(max_z, world.agent_state(0).pos[2]);
+      }
+      EXPECT_LT(max_z, 0.3) << "side " << side << ", facing " << facing;
+      EXPECT_FALSE(world.unstable());
+    }
+  }
+}
+
 // No body passes through a 0.1 m wall at top speed.
 TEST(WorldMotion, AgentAtTopSpeedDoesNotTunnelThroughWall) {
   {

@@ -107,8 +107,9 @@ TEST(PpoLearningDefaultPrecision, CountBasedAgentsLearnToMoveBoxes) {
 
 // The food family: in the food game with one hider and no seeker (so nothing stops it eating after the
 // preparation phase; 80-step episodes), the hider learns to go to the centred food and face it: the units
-// eaten per episode grow well beyond the initial policy's (with this config: 1.2 over the first 3
-// iterations, 4.2 over the last 5; 100 k agent-steps, about 30 s on 2 cores).
+// eaten per episode grow well beyond the initial policy's. Means over 5 iterations of 64 episodes each, as
+// one episode's count is noisy (with this config: 2.5 over the first 5 iterations, 5.5 over the last 5;
+// `hns train` with seed 2 gave 2.1 and 4.5; 205 k agent-steps).
 TEST(PpoLearningDefaultPrecision, AHiderLearnsToEatTheFood) {
   TrainConfig c;
   c.scene = "food";
@@ -116,20 +117,20 @@ TEST(PpoLearningDefaultPrecision, AHiderLearnsToEatTheFood) {
   c.hiders = 1;
   c.seekers = 0;
   c.horizon = 80;
-  c.envs = 32;
+  c.envs = 64;
   c.iterations = 40;
   c.threads = 0;
   c.seed = 1;
   Trainer t(c);
-  double first = 0, last5 = 0;
+  double first5 = 0, last5 = 0;
   for (int i = 1; i <= c.iterations; ++i) {
     const IterationMetrics m = t.iterate();
-    if (i <= 3) first += m.food_eaten / 3;
+    if (i <= 5) first5 += m.food_eaten / 5;
     if (i > c.iterations - 5) last5 += m.food_eaten / 5;
   }
-  std::printf("food: units eaten per episode %.2f -> %.2f\n", first, last5);
-  EXPECT_GT(last5, 2.0 * first);
-  EXPECT_GT(last5, 3.0);
+  std::printf("food: units eaten per episode %.2f -> %.2f\n", first5, last5);
+  EXPECT_GT(last5, 1.6 * first5);
+  EXPECT_GT(last5, 3.5);
 }
 
 }  // namespace
