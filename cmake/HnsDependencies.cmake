@@ -16,6 +16,12 @@ if(NOT ODE_FOUND)
   hns_missing("ODE (Open Dynamics Engine)" "libode-dev")
 endif()
 
+# libgd (Debian libgd-dev): the top-down pictures and animated GIFs of recorded episodes (replay/render.hpp).
+pkg_check_modules(GD IMPORTED_TARGET gdlib)
+if(NOT GD_FOUND)
+  hns_missing("libgd" "libgd-dev")
+endif()
+
 find_package(Eigen3 3.4 QUIET NO_MODULE)
 if(NOT Eigen3_FOUND)
   hns_missing("Eigen 3.4" "libeigen3-dev")

@@ -24,6 +24,8 @@
 #include "ppo/policy.hpp"
 #include "replay/metrics.hpp"
 #include "replay/play.hpp"
+#include "replay/recorder.hpp"
+#include "replay/render.hpp"
 #include "replay/stages.hpp"
 #include "replay/trajectory.hpp"
 
@@ -546,6 +548,21 @@ class BatchEnv {
   const std::string& scene_name() const {
     return scene_;
   }
+  // Env `env` as it is now, drawn top-down (replay/render.hpp): uint8 (size, size, 3).
+  py::array_t<uint8_t> render_rgb(int env, int size) const {
+    check_open("render");
+    if (env < 0 || env >= sim_->config().num_envs) {
+      raise(PyExc_ValueError, "env = " + std::to_string(env) + " is invalid: the batch has envs 0 to " +
+                                  std::to_string(sim_->config().num_envs - 1));
+    }
+    if (size < 64 || size > 4096) {
+      raise(PyExc_ValueError, "size = " + std::to_string(size) + " is invalid: must be in [64, 4096] pixels");
+    }
+    const replay::RgbImage im = replay::render_frame(replay::snapshot(*sim_, env, scene_), 0, size);
+    py::array_t<uint8_t> out({im.height, im.width, 3});
+    std::memcpy(out.mutable_data(), im.rgb.data(), im.rgb.size());
+    return out;
+  }
   uintptr_t field_address(const std::string& name) const {
     check_open("_field_address");
     if (!fields_.contains(name)) raise(PyExc_KeyError, "no batch field " + name);
@@ -959,6 +976,7 @@ reset(). Pass copy=True for arrays of your own.)doc")
       .def("field_docs", &BatchEnv::field_docs, "What each state() field holds, with units and shape.")
       .def("scene", &BatchEnv::scene, py::arg("env"),
            "The scene env `env` plays now: walls (n, 6: centre, half extents, m), doors (cells), spawns.")
+      .def("_render_rgb", &BatchEnv::render_rgb, py::arg("env"), py::arg("size"))
       .def("_field_address", &BatchEnv::field_address)
       .def("close", &BatchEnv::close,
            "Releases the simulator (its memory goes once no array the env handed out is alive); reset, step "

@@ -7,7 +7,7 @@ HNS_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 HNS_PACKAGES=(build-essential cmake pkg-config libode-dev libeigen3-dev libxsimd-dev libtbb-dev
               libgtest-dev libgmock-dev libbenchmark-dev libcli11-dev nlohmann-json3-dev
               python3 git valgrind python3-dev pybind11-dev python3-numpy python3-pytest
-              libopenmpi-dev openmpi-bin
+              libopenmpi-dev openmpi-bin libgd-dev
               libmujoco-dev)  # test-only: the physics parity suite runs the original's engine (MuJoCo)
 # Optional test-only packages: headless Chromium for the replay page tests. If they cannot be installed
 # (no network, no root), the tests that need them report themselves skipped; the build goes on.

@@ -100,15 +100,17 @@ BatchEnv.single_action_space = _cached("_single_action_space", _single_action_sp
 BatchEnv.action_space = _cached("_action_space", _action_space)
 
 # Gymnasium's metadata: auto-reset inside the step that ends a game (info["final_obs"] keeps its last
-# observation); no render mode yet.
-BatchEnv.metadata = {"render_modes": [], "autoreset_mode": "same-step"}
-BatchEnv.render_mode = None
+# observation); render() draws one env as an RGB array.
+BatchEnv.metadata = {"render_modes": ["rgb_array"], "autoreset_mode": "same-step", "render_fps": 1 / 0.075}
+BatchEnv.render_mode = "rgb_array"
 
 
-def _render(self):
-    """Not available yet: record episodes with hns.record() and view them with `hns replay FILE --html`."""
-    raise NotImplementedError("hns has no render() yet: record episodes with hns.record(...) and view them with "
-                              "`hns replay FILE --html`")
+def _render(self, env=0, size=320):
+    """Env `env` as it is now, drawn top-down as `hns replay --gif` draws a frame: a uint8 array
+    (size, size, 3). Walls dark grey, boxes brown (blue-grey or red-brown where hiders or seekers locked
+    them), ramps olive with their high edge dark, hiders cyan and seekers red with arms and vision cone; the
+    floor is tinted and a yellow bar runs along the top during the preparation phase."""
+    return self._render_rgb(int(env), int(size))
 
 
 BatchEnv.render = _render

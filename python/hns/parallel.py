@@ -20,7 +20,8 @@ from . import spaces as _spaces
 
 
 class ParallelEnv:
-    metadata = {"name": "hns_v0", "render_modes": []}
+    metadata = {"name": "hns_v0", "render_modes": ["rgb_array"], "render_fps": 1 / 0.075}
+    render_mode = "rgb_array"
 
     def __init__(self, scene="quadrant", seed=1, threads=1, **counts):
         from . import BatchEnv  # the compiled module, imported by the package first
@@ -99,9 +100,9 @@ class ParallelEnv:
             self.agents = []
         return observations, rewards, terminations, truncations, infos
 
-    def render(self):
-        raise NotImplementedError("hns has no render() yet: record episodes with hns.record and view them "
-                                  "with `hns replay FILE --html`")
+    def render(self, size=320):
+        """The game as it is now, drawn top-down: a uint8 array (size, size, 3) (BatchEnv.render)."""
+        return self._env.render(0, size)
 
     def close(self):
         self._env.close()

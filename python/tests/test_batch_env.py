@@ -458,8 +458,30 @@ def test_parallel_env_follows_pettingzoos_contract():
     env.close()
 
 
-def test_gymnasium_metadata_and_render_say_what_there_is():
-    env = hns.BatchEnv(scene="quadrant", num_envs=1, threads=1)
-    assert env.metadata["autoreset_mode"] == "same-step" and env.render_mode is None
-    with pytest.raises(NotImplementedError, match="hns replay"):
-        env.render()
+def test_gymnasium_metadata_and_render_draw_the_env():
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1)
+    assert env.metadata["autoreset_mode"] == "same-step" and env.render_mode == "rgb_array"
+    assert "rgb_array" in env.metadata["render_modes"]
+    env.reset()
+    picture = env.render()
+    assert picture.shape == (320, 320, 3) and picture.dtype == np.uint8
+    assert env.render(1, size=100).shape == (100, 100, 3)
+    # Each box of env 0 is drawn where its state says: the pixel of its centre has a box's colour
+    # (brown, or blue-grey / red-brown where locked).
+    pos = env.state()["box_pos"][0]
+    boxes = len(env.scene(0)["boxes"])
+    assert boxes >= 1
+    # The view of a quadrant game is the arena, x and y in [-0.2, 6.2] m, +y up.
+    for b in range(boxes):
+        col = int((pos[b][0] + 0.2) * 320 / 6.4)
+        row = int((6.2 - pos[b][1]) * 320 / 6.4)
+        assert tuple(picture[row, col]) in {(176, 122, 66), (86, 120, 170), (170, 70, 60)}, (b, pos[b])
+    with pytest.raises(ValueError, match="env = 5"):
+        env.render(5)
+    with pytest.raises(ValueError, match="size = 10"):
+        env.render(0, 10)
+    env.close()
+    game = hns.ParallelEnv(scene="quadrant", seed=3)
+    game.reset()
+    assert game.render_mode == "rgb_array" and game.render(size=128).shape == (128, 128, 3)
+    game.close()

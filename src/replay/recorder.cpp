@@ -82,16 +82,15 @@ void capture(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, int t,
   }
 }
 
-// Starts recording the env's current episode: header from its scene, frame 0 from the reset state.
-void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordConfig& config) {
+// The header of the env's current episode (its scene, the game's settings), blocks sized for `frames`.
+void header(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, const phys::WorldConfig& game,
+            const std::string& scene_name, uint64_t seed, int frames) {
   const phys::World& world = sim.world(env);
   const phys::Scene& scene = world.scene();
-  const phys::WorldConfig& game = config.game.world;
-  TrajectoryEpisode& ep = rec.ep;
   ep = TrajectoryEpisode{};
-  ep.scene = config.scene;
+  ep.scene = scene_name;
   ep.layout = phys::layout_name(scene.layout);
-  ep.seed = config.game.seed;
+  ep.seed = seed;
   ep.env = env;
   ep.episode = sim.state().episode[env];
   ep.horizon = game.horizon;
@@ -112,8 +111,14 @@ void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordC
   for (const phys::Spawn& c : scene.sites) ep.sites.push_back({c.x, c.y, c.sx});
   for (const phys::Spawn& b : scene.boxes) ep.box_sizes.push_back({b.sx, b.sy, b.sz});
   std::copy(std::begin(game.restrict_rect), std::end(game.restrict_rect), ep.restrict_rect.begin());
-  ep.resize(game.horizon + 1);
-  capture(ep, sim, env, 0, {});
+  ep.resize(frames);
+}
+
+// Starts recording the env's current episode: header from its scene, frame 0 from the reset state.
+void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordConfig& config) {
+  const phys::WorldConfig& game = config.game.world;
+  header(rec.ep, sim, env, game, config.scene, config.game.seed, game.horizon + 1);
+  capture(rec.ep, sim, env, 0, {});
   rec.active = true;
   rec.last_frame = 0;
 }
@@ -131,6 +136,21 @@ void finish(TrajectoryEpisode& ep) {
 }
 
 }  // namespace
+
+TrajectoryEpisode snapshot(const batch::BatchSim& sim, int env, const std::string& scene) {
+  if (env < 0 || env >= sim.config().num_envs) {
+    throw std::invalid_argument("env " + std::to_string(env) + ": the batch has envs 0 to " +
+                                std::to_string(sim.config().num_envs - 1));
+  }
+  TrajectoryEpisode ep;
+  header(ep, sim, env, sim.config().world, scene, sim.config().seed, 1);
+  capture(ep, sim, env, 0, {});
+  // As in a recording, frame t (after t steps) lies in the preparation phase while t <= prep_steps.
+  ep.prep[0] = sim.world(env).step_count() <= ep.prep_steps ? 1 : 0;
+  for (int a = 0; a < ep.num_agents(); ++a)
+    ep.reward[size_t(a)] = sim.state().reward[size_t(env) * sim.layout().max_agents + a];
+  return ep;
+}
 
 void RandomActions::operator()(const batch::BatchSim& sim, std::span<phys::AgentAction> actions) {
   const int n_envs = sim.num_envs(), ma = sim.layout().max_agents;

@@ -58,4 +58,8 @@ batch::BatchConfig recording_batch_config(const batch::BatchConfig& game);
 RecordSummary record_episodes(const RecordConfig& config, const ActionFn& actions,
                               const std::function<void(const TrajectoryEpisode&)>& sink);
 
+// The env's present state as a one-frame episode (header and frame 0: poses, locks, perception, the last
+// step's rewards, whether the env is in its preparation phase), for a picture of it (render.hpp).
+TrajectoryEpisode snapshot(const batch::BatchSim& sim, int env, const std::string& scene);
+
 }  // namespace hns::replay

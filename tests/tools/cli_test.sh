@@ -128,7 +128,6 @@ expect_fail 2 "cannot open checkpoint" play --checkpoint "$tmp/model.ckpt" --out
 expect_fail 2 "excludes" play --random --checkpoint "$tmp/model.ckpt" --out "$tmp/x.traj"
 expect_fail 2 "missing-dir does not exist" play --out "$tmp/missing-dir/x.traj"
 expect_fail 2 "seed = -1" play --seed -1 --out "$tmp/x.traj"
-expect_fail 2 "html" replay "$tmp/x.traj"
 expect_fail 2 "is also an input" replay "$tmp/x.traj" --html "$tmp/x.traj"
 expect_fail 2 "cannot read" replay "$tmp/nothing.traj" --html "$tmp/x.html"
 printf 'not a trajectory at all' >"$tmp/garbage.traj"
@@ -150,6 +149,17 @@ else
   failed=$((failed + 1))
   echo "FAIL: play + replay run"; cat "$tmp/log"
 fi
+# The same recording as an animated GIF (one picture per frame of 2 episodes of 81 frames), and neither
+# output asked for is refused.
+if "$hns" replay "$tmp/q.traj" --gif "$tmp/q.gif" --size 96 >"$tmp/log" 2>&1 && [ ! -e "$tmp/q.gif.tmp" ] &&
+   [ "$(head -c 6 "$tmp/q.gif")" = "GIF89a" ] && grep -q "162 pictures of 96 x 96 px" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: replay --gif"; cat "$tmp/log"
+fi
+expect_fail 2 "say what to write" replay "$tmp/q.traj"
+expect_fail 2 "episode 7.*episodes 0 to 1" replay "$tmp/q.traj" --gif "$tmp/q7.gif" --episode 7
 head -c 5000 "$tmp/q.traj" >"$tmp/cut.traj"
 expect_fail 2 "episode 0.*truncated" replay "$tmp/cut.traj" --html "$tmp/cut.html"
 [ -e "$tmp/cut.html" ] && { failed=$((failed + 1)); echo "FAIL: replay of a truncated file wrote a page"; }
