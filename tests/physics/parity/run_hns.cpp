@@ -67,7 +67,8 @@ std::vector<Frame> run_hns(const Stage& stage, int steps, const Policy& policy) 
     const std::vector<Move> moves = policy(k, now);
     for (int i = 0; i < num_agents; ++i) {
       const Move mv = size_t(i) < moves.size() ? moves[size_t(i)] : Move{};
-      actions[size_t(i)] = AgentAction{uint8_t(mv.x), uint8_t(mv.y), uint8_t(mv.turn), 0, 0};
+      actions[size_t(i)] =
+          AgentAction{uint8_t(mv.x), uint8_t(mv.y), uint8_t(mv.turn), uint8_t(mv.grab), uint8_t(mv.lock)};
     }
     world.step(actions);
     now = frame();

@@ -74,7 +74,16 @@ std::string mujoco_xml(const Stage& stage) {
     joints(x, p, 0.1, 0.1, 0.1);
     x << "<geom type='mesh' mesh='ramp' mass='1' friction='0.01 0.005 0.0001' condim='3'/></body>";
   }
-  x << "</worldbody><actuator>";
+  x << "</worldbody>";
+  if (!stage.holds.empty()) {
+    x << "<equality>";
+    for (const Hold& h : stage.holds) {
+      x << "<weld name='hold" << h.agent << "_" << h.box << "' body1='agent" << h.agent << "' body2='box"
+        << h.box << "'/>";
+    }
+    x << "</equality>";
+  }
+  x << "<actuator>";
   for (size_t i = 0; i < stage.agents.size(); ++i) {
     const std::string p = "agent" + std::to_string(i);
     for (const char* axis : {"tx", "ty", "rz"}) {
@@ -109,6 +118,15 @@ std::vector<Frame> run_mujoco(const Stage& stage, int steps, const Policy& polic
     d->qpos[qadr("box" + std::to_string(i) + "rz")] = stage.boxes[i].yaw;
   for (size_t i = 0; i < stage.ramps.size(); ++i)
     d->qpos[qadr("ramp" + std::to_string(i) + "rz")] = stage.ramps[i].yaw;
+  // The original's lock, as it does it at run time: every joint of a locked box limited to [q, q].
+  for (size_t i = 0; i < stage.boxes.size(); ++i) {
+    if (!stage.boxes[i].locked) continue;
+    for (const char* axis : {"tx", "ty", "tz", "rz"}) {
+      const int j = mj_name2id(m, mjOBJ_JOINT, ("box" + std::to_string(i) + axis).c_str());
+      m->jnt_limited[j] = 1;
+      m->jnt_range[2 * j] = m->jnt_range[2 * j + 1] = d->qpos[m->jnt_qposadr[j]];
+    }
+  }
   mj_forward(m, d);
 
   auto pose = [&](const std::string& body) {
@@ -126,6 +144,11 @@ std::vector<Frame> run_mujoco(const Stage& stage, int steps, const Policy& polic
   Frame now = frame();
   for (int k = 0; k < steps; ++k) {
     const std::vector<Move> moves = policy(k, now);
+    // A weld holds while its agent's grab bit is set.
+    for (size_t h = 0; h < stage.holds.size(); ++h) {
+      const size_t a = size_t(stage.holds[h].agent);
+      m->eq_active[h] = a < moves.size() && moves[a].grab ? 1 : 0;
+    }
     for (size_t i = 0; i < stage.agents.size(); ++i) {
       const Move mv = i < moves.size() ? moves[i] : Move{};
       d->ctrl[3 * i] = ctrl(mv.x);

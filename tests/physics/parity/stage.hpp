@@ -18,6 +18,9 @@ struct BoxStart {
   double x, y;
   double sx = 0.5, sy = 0.5, sz = 0.5;  // m, full extents
   double yaw = 0;
+  // MuJoCo: pinned where it starts, as the original's lock pins every joint (its range set to [q, q] at run
+  // time). hns locks it through the game's rule: some agent must press lock beside it (Move::lock).
+  bool locked = false;
 };
 struct RampStart {
   double x, y;     // bounding-box centre
@@ -28,9 +31,17 @@ struct WallStart {
   double height = 0.5;
 };
 
-// One agent's action in one env step: the movement and turn bins (0 .. 10, 5 = none) of the policy's action.
+// One agent's action in one env step: the movement and turn bins (0 .. 10, 5 = none) of the policy's action,
+// and the grab and lock bits (hns applies its game rules: range, vision, teams).
 struct Move {
   int x = 5, y = 5, turn = 5;
+  bool grab = false, lock = false;
+};
+
+// MuJoCo: agent `agent` holds box `box` by the original's weld constraint while its grab bit is set, keeping
+// their relative pose at the start (stage both with yaw 0). hns grabs through the game's rule.
+struct Hold {
+  int agent, box;
 };
 
 struct Stage {
@@ -38,6 +49,7 @@ struct Stage {
   std::vector<BoxStart> boxes;
   std::vector<RampStart> ramps;
   std::vector<WallStart> walls;
+  std::vector<Hold> holds;
   // The outer walls of the 6 x 6 m arena (4 m high, inner faces at 0 and 6).
   Stage& with_arena();
 };
