@@ -549,11 +549,12 @@ class BatchEnv {
     return scene_;
   }
   // Env `env` as it is now, drawn top-down (replay/render.hpp): uint8 (size, size, 3).
-  py::array_t<uint8_t> render_rgb(int env, int size) const {
+  py::array_t<uint8_t> render_rgb(int env, int size) {
+    BusyGuard busy(busy_, "BatchEnv.render");  // a step may be moving the bodies meanwhile
     check_open("render");
-    if (env < 0 || env >= sim_->config().num_envs) {
-      raise(PyExc_ValueError, "env = " + std::to_string(env) + " is invalid: the batch has envs 0 to " +
-                                  std::to_string(sim_->config().num_envs - 1));
+    if (env < 0 || env >= num_envs()) {
+      raise(PyExc_IndexError, "env = " + std::to_string(env) + " is out of range: the batch has " +
+                                  std::to_string(num_envs()) + " envs");
     }
     if (size < 64 || size > 4096) {
       raise(PyExc_ValueError, "size = " + std::to_string(size) + " is invalid: must be in [64, 4096] pixels");

@@ -107,7 +107,7 @@ BatchEnv.render_mode = "rgb_array"
 
 def _render(self, env=0, size=320):
     """Env `env` as it is now, drawn top-down as `hns replay --gif` draws a frame: a uint8 array
-    (size, size, 3). Walls dark grey, boxes brown (blue-grey or red-brown where hiders or seekers locked
+    (size, size, 3); a bad env is an IndexError, a size outside [64, 4096] a ValueError. Walls dark grey, boxes brown (blue-grey or red-brown where hiders or seekers locked
     them), ramps olive with their high edge dark, hiders cyan and seekers red with arms and vision cone; the
     floor is tinted and a yellow bar runs along the top during the preparation phase."""
     return self._render_rgb(int(env), int(size))

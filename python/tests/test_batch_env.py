@@ -476,7 +476,7 @@ def test_gymnasium_metadata_and_render_draw_the_env():
         col = int((pos[b][0] + 0.2) * 320 / 6.4)
         row = int((6.2 - pos[b][1]) * 320 / 6.4)
         assert tuple(picture[row, col]) in {(176, 122, 66), (86, 120, 170), (170, 70, 60)}, (b, pos[b])
-    with pytest.raises(ValueError, match="env = 5"):
+    with pytest.raises(IndexError, match="env = 5"):
         env.render(5)
     with pytest.raises(ValueError, match="size = 10"):
         env.render(0, 10)

@@ -77,7 +77,11 @@ namespace {
 // rows beyond the last whole 4-row panel by another kernel whose sums round differently, so a row's bits
 // would depend on its position in the product (an inference chunk of 16 rows against a training chunk of
 // 150, say, and the rollout's log-probabilities would not be those the update recomputes). Whole panels of
-// kRowPanel rows go to Eigen; the rest is padded with zero rows in a scratch panel.
+// kRowPanel rows go to Eigen; the rest is padded with zero rows in a scratch panel. (This rests on
+// Eigen 3.4's kernels: a row-major product is computed transposed, rows becoming 4-wide column panels;
+// products small enough for Eigen's coefficient-wise path, rows + cols + depth < 20, would round differently
+// again, and no layer of the networks is that small. NnNetworkPrecision.ChunkOfTenStepsEqualsTenActSteps
+// checks it.)
 constexpr int kRowPanel = 8;
 
 void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {

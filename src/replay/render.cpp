@@ -162,9 +162,14 @@ ViewBox episode_view(const TrajectoryEpisode& ep) {
     const double half = 0.5 * std::hypot(ep.box_sizes[size_t(b)][0], ep.box_sizes[size_t(b)][1]) + 0.05;
     for (int f = 0; f < ep.frames; ++f) {
       const float* p = &ep.box_pose[(size_t(f) * ep.num_boxes + b) * 4];
-      for (int k = 0; k < 2; ++k) lo[k] = std::min(lo[k], p[k] - half), hi[k] = std::max(hi[k], p[k] + half);
+      for (int k = 0; k < 2; ++k) {
+        if (!std::isfinite(p[k])) continue;
+        lo[k] = std::min(lo[k], p[k] - half), hi[k] = std::max(hi[k], p[k] + half);
+      }
     }
   }
+  // Bodies far off (a trajectory's poses are only checked to be finite) make the view at most 1 km wide.
+  for (int k = 0; k < 2; ++k) lo[k] = std::max(lo[k], -500.0), hi[k] = std::min(hi[k], 500.0);
   const double span = std::max(hi[0] - lo[0], hi[1] - lo[1]);
   // Centred on the covered rectangle, square.
   return ViewBox{0.5 * (lo[0] + hi[0]) - 0.5 * span, 0.5 * (lo[1] + hi[1]) - 0.5 * span, span};
@@ -221,9 +226,10 @@ std::string encode_gif(const std::vector<const TrajectoryEpisode*>& episodes, co
   int count = 0;
   for (const TrajectoryEpisode* ep : episodes) {
     const ViewBox view = episode_view(*ep);
-    // Delay in hundredths of a second between drawn frames.
-    const int delay =
-        std::max(2, static_cast<int>(std::lround(100 * ep->step_time * options.every / options.speed)));
+    // Delay in hundredths of a second between drawn frames, at most 65535 / 4 (a 16-bit field; the last
+    // frame holds four times as long).
+    const int delay = static_cast<int>(
+        std::clamp(std::lround(100 * ep->step_time * options.every / options.speed), 2L, 16383L));
     for (int f = 0; f < ep->frames; ++f) {
       if (f % options.every != 0 && f != ep->frames - 1) continue;
       const Image im(gdImageCreate(size, size));

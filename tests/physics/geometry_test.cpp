@@ -256,6 +256,16 @@ TEST(SphereConvex, DepthAndNormalMatchTheClosestSurfacePoint) {
     EXPECT_NEAR(contact.normal[2], n_local[2], 1e-9);
   }
   EXPECT_GT(outside, 100);
+  // A centre inside: out through the nearest face (+x here), as deep as the radius plus the way to it.
+  const double inside_local[3] = {0.3, 0.1, -0.05};
+  const double centre[3] = {pos[0] + c * inside_local[0] - s * inside_local[1],
+                            pos[1] + s * inside_local[0] + c * inside_local[1], pos[2] + inside_local[2]};
+  SphereContact contact;
+  ASSERT_TRUE(collide_sphere_convex(centre, 0.1, pos, rot, cube, contact));
+  EXPECT_NEAR(contact.depth, 0.1 + 0.2, 1e-12);
+  EXPECT_NEAR(contact.normal[0], c, 1e-12);
+  EXPECT_NEAR(contact.normal[1], s, 1e-12);
+  EXPECT_NEAR(contact.normal[2], 0.0, 1e-12);
 }
 
 }  // namespace hns::physics

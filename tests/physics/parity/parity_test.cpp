@@ -60,7 +60,7 @@ TEST(PhysicsParity, AgentUnderFullForce) {
   const auto m = run_mujoco(s, 4, hold({{10, 10, 5}}));
   expect_close("full force diagonally: distance after 4 steps",
                std::hypot(h[3].agents[0].x - 1, h[3].agents[0].y - 1),
-               std::hypot(m[3].agents[0].x - 1, m[3].agents[0].y - 1), 0.15);
+               std::hypot(m[3].agents[0].x - 1, m[3].agents[0].y - 1), 0.05);
 }
 
 // A cube pushed straight, and an elongated box pushed off centre (it turns).
@@ -89,10 +89,10 @@ TEST(PhysicsParity, PushedBoxes) {
     expect_close("elongated box pushed off centre: its turn after 6 steps (rad)", h_turn, m_turn,
                  0.15 * m_turn);
     // Known gap (docs/physics.md): hns's box travels about half as far again before the agent slips off
-    // its end; the bound keeps it from growing.
+    // its end; the bound keeps it from growing (before the contact changes it was 1.015 m, outside it).
     expect_close("elongated box pushed off centre: its centre's travel (m)",
                  std::hypot(h[5].boxes[0].x - 3, h[5].boxes[0].y - 3),
-                 std::hypot(m[5].boxes[0].x - 3, m[5].boxes[0].y - 3), 0.4);
+                 std::hypot(m[5].boxes[0].x - 3, m[5].boxes[0].y - 3), 0.35);
   }
 }
 
@@ -141,7 +141,7 @@ TEST(PhysicsParity, GrabbedAndLockedBoxes) {
 
 // A free ramp's side caps are no way up: an agent 1 m beside it pushes towards it for 25 steps from either
 // side, in four facings (the arena's wall stops the ramp after a few steps). MuJoCo's agent pushes the ramp
-// aside; its centre never rises above 0.17 m.
+// aside; its centre never rises above 0.22 m.
 TEST(PhysicsParity, FreeRampSideCapsAreNoWayUp) {
   for (const int side : {-1, 1}) {
     for (int facing = 0; facing < 4; ++facing) {
