@@ -6,6 +6,7 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstring>
 #include <filesystem>
@@ -454,6 +455,33 @@ class BatchEnv {
       static_assert(std::size(values) == std::size(float_names));
       for (size_t k = 0; k < std::size(float_names); ++k) floats[k].mutable_at(i) = values[k];
     }
+    // The same per env, as Gymnasium's vector envs give episode statistics: info["episode"][key] is (E,),
+    // meaningful where info["_episode"] is true (the env's episode ended in this step), 0 elsewhere.
+    const py::ssize_t num = num_envs();
+    py::array_t<bool> has(num), per_discarded(num);
+    py::array_t<int32_t> per_length(num), per_number(num);
+    std::vector<py::array_t<float>> per_env;
+    for (size_t k = 0; k < std::size(float_names); ++k) per_env.emplace_back(num);
+    std::fill_n(has.mutable_data(), num, false);
+    std::fill_n(per_discarded.mutable_data(), num, false);
+    std::fill_n(per_length.mutable_data(), num, 0);
+    std::fill_n(per_number.mutable_data(), num, 0);
+    for (auto& a : per_env) std::fill_n(a.mutable_data(), num, 0.0f);
+    for (py::ssize_t i = 0; i < n; ++i) {
+      const py::ssize_t e = env.at(i);
+      has.mutable_at(e) = true;
+      per_length.mutable_at(e) = length.at(i);
+      per_number.mutable_at(e) = episode.at(i);
+      per_discarded.mutable_at(e) = discarded.at(i);
+      for (size_t k = 0; k < std::size(float_names); ++k) per_env[k].mutable_at(e) = floats[k].at(i);
+    }
+    py::dict episode_info;
+    episode_info["l"] = per_length;
+    episode_info["episode"] = per_number;
+    episode_info["discarded"] = per_discarded;
+    for (size_t k = 0; k < std::size(float_names); ++k) episode_info[float_names[k]] = per_env[k];
+    d["episode"] = episode_info;
+    d["_episode"] = has;
     py::dict ended;
     ended["env"] = env;
     ended["episode"] = episode;

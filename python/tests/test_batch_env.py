@@ -428,6 +428,31 @@ def test_final_observation_is_the_last_step_before_the_auto_reset():
     assert not info["_final_obs"].any()
 
 
+def test_episode_statistics_per_env_with_gymnasiums_mask():
+    # Envs with horizons that end at different steps: each step's info["episode"] holds (E,) arrays, filled
+    # where info["_episode"] is true, and agrees with the ended episodes' table info["finished"].
+    env = hns.BatchEnv(scene="quadrant", num_envs=3, threads=1, seed=4, horizon=6)
+    env.reset()
+    ended_steps = 0
+    for t in range(13):
+        _, _, _, truncated, info = env.step(np.zeros((3, env.max_agents, 5), np.uint8))
+        mask = info["_episode"]
+        assert mask.dtype == bool and mask.shape == (3,)
+        np.testing.assert_array_equal(mask, truncated)
+        for key, values in info["episode"].items():
+            assert values.shape == (3,), key
+            assert not values[~mask].any(), key + ": zero where no episode ended"
+        finished = info["finished"]
+        assert sorted(finished["env"].tolist()) == np.flatnonzero(mask).tolist()
+        for i, e in enumerate(finished["env"]):
+            for key in ("hider_return", "seeker_return", "max_box_move", "length", "episode"):
+                per_env = info["episode"]["l" if key == "length" else key]
+                assert per_env[e] == finished[key][i], key
+        ended_steps += bool(mask.any())
+    assert ended_steps == 2
+    env.close()
+
+
 def test_parallel_env_follows_pettingzoos_contract():
     env = hns.ParallelEnv(scene="quadrant", seed=2, horizon=12)
     assert env.possible_agents == ["agent_%d" % i for i in range(4)] and env.agents == []
