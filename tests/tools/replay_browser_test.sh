@@ -172,12 +172,16 @@ else
 fi
 
 # The training report: a short real run (checkpoint, hence a recording, every iteration) rendered as a page
-# that draws its 11 charts from all 3 iterations and embeds the replay of the latest policy.
+# that draws its 16 charts from all 3 iterations, each with its quantity's unit on the y axis, and embeds the
+# replay of the latest policy.
 if "$hns" train --scene lockbox --envs 4 --iterations 3 --threads 1 --set checkpoint_every=1 --set minibatches=2 \
      --out "$tmp/run" >"$tmp/log" 2>&1 && "$hns" report "$tmp/run" --html "$tmp/report.html" >>"$tmp/log" 2>&1; then
   s="$(status "$tmp/report.html" "")"
-  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr charts "$s")" = "11" ] && [ "$(attr points "$s")" = "3" ] &&
-     [ "$(attr replay "$s")" = "1" ] && [ "$(attr series "$s")" -ge 9 ] && ! grep -q 'https\?://' "$tmp/report.html"; then
+  ytitles="$(attr ytitles "$s")"
+  if [ "$(attr state "$s")" = "ready" ] && [ "$(attr charts "$s")" = "16" ] && [ "$(attr points "$s")" = "3" ] &&
+     [ "$(attr replay "$s")" = "1" ] && [ "$(attr series "$s")" -ge 9 ] && ! grep -q 'https\?://' "$tmp/report.html" &&
+     [ "$(tr '|' '\n' <<<"$ytitles" | grep -c .)" = "16" ] && grep -q "m/s" <<<"$ytitles" &&
+     grep -q "fraction (0 to 1)" <<<"$ytitles" && grep -q "agent-steps/s" <<<"$ytitles"; then
     pass
   else
     fail "report page: ${s:-<none>}"
@@ -212,20 +216,23 @@ else
   fail "could not report the axis run"
 fi
 
-# The stage band: a quadrant run whose episodes seal both doors from iteration 21 on reaches fort building
-# at iteration 25 (windows of 1000 episodes: 10 iterations of 100); the page shades the return chart from
-# there and lists the stage, and the command prints it.
+# The stage band and markers: a quadrant run whose seekers chase from iteration 6 on and whose episodes seal
+# both doors from iteration 21 on reaches running and chasing and fort building (windows of 1000 episodes:
+# 10 iterations of 100); the page shades the return chart from each, marks each stage's first iteration
+# with a named line, and lists them, and the command prints them.
 mkdir -p "$tmp/stages"
 echo '{"scene": "quadrant"}' >"$tmp/stages/config.json"
 for i in $(seq 1 40); do
   sealed=0; [ "$i" -ge 21 ] && sealed=2
-  echo "{\"iteration\": $i, \"agent_steps\": $((i * 20480)), \"episodes\": 100, \"hider_reward\": 0, \"seeker_reward\": 0, \"num_doors\": 2, \"num_door_sealed_prep\": $sealed, \"seeker_approach\": 0.1}"
+  approach=0.1; [ "$i" -ge 6 ] && approach=0.5
+  echo "{\"iteration\": $i, \"agent_steps\": $((i * 20480)), \"episodes\": 100, \"hider_reward\": 0, \"seeker_reward\": 0, \"num_doors\": 2, \"num_door_sealed_prep\": $sealed, \"seeker_approach\": $approach}"
 done >"$tmp/stages/metrics.jsonl"
 if "$hns" report "$tmp/stages" --html "$tmp/stages.html" >"$tmp/log" 2>&1 &&
    grep -q "fort building: from iteration 25 " "$tmp/log"; then
   s="$(status "$tmp/stages.html" "")"
-  if [ "$(attr stages "$s")" = "5" ] && [ "$(attr stages-reached "$s")" = "fort-building" ] &&
-     [ "$(attr band-spans "$s")" = "1" ]; then
+  if [ "$(attr stages "$s")" = "5" ] && [ "$(attr stages-reached "$s")" = "running-and-chasing fort-building" ] &&
+     [ "$(attr band-spans "$s")" = "2" ] &&
+     [ "$(attr stage-markers "$s")" = "running-and-chasing fort-building" ]; then
     pass
   else
     fail "stage band: ${s:-<none>}"
