@@ -176,11 +176,50 @@ std::string table_markdown(const Summary& s, const json& settings) {
   return o.str();
 }
 
+std::string html_escape(const std::string& text) {
+  std::string out;
+  for (char ch : text) {
+    if (ch == '<')
+      out += "&lt;";
+    else if (ch == '>')
+      out += "&gt;";
+    else if (ch == '&')
+      out += "&amp;";
+    else
+      out += ch;
+  }
+  return out;
+}
+
+// Round tick values over [lo, hi]: multiples of 1, 2 or 5 times a power of ten, about `count` of them.
+std::vector<double> round_ticks(double lo, double hi, int count) {
+  const double span = hi > lo ? hi - lo : 1.0;
+  const double raw = span / count, mag = std::pow(10.0, std::floor(std::log10(raw)));
+  double step = 10 * mag;
+  for (double m : {1.0, 2.0, 5.0, 10.0}) {
+    if (m * mag >= raw) {
+      step = m * mag;
+      break;
+    }
+  }
+  std::vector<double> out;
+  for (double v = std::ceil(lo / step) * step; v <= hi + 1e-9 * span; v += step) out.push_back(v);
+  return out;
+}
+
+// An agent-step tick: 0, 250k, 1.5M.
+std::string steps_label(double v) {
+  if (v >= 1e6) return fmt(v / 1e6, v / 1e6 == std::floor(v / 1e6) ? 0 : 1) + "M";
+  if (v >= 1e3) return fmt(v / 1e3, v / 1e3 == std::floor(v / 1e3) ? 0 : 1) + "k";
+  return fmt(v, 0);
+}
+
 // One chart per task: the normalised, smoothed return against agent-steps, the mean over seeds as a line and
-// its 90 % interval as a band, per condition; dashed lines at 0 (random) and 1 (best final).
+// its 90 % interval as a band, per condition; dashed lines at 0 (random) and 1 (best final); ticks on both
+// axes; the legend below the plot, so no curve hides behind it (a condition above 1 included).
 std::string chart_svg(const Summary& s, const std::string& task) {
   static const char* kColours[] = {"#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b"};
-  const double W = 520, H = 300, L = 56, R = 12, T = 28, B = 40;
+  const double W = 520, H = 330, L = 60, R = 14, T = 28, B = 70;
   const double rnd = s.random.at(task), best = s.best(task);
   struct Curve {
     std::vector<double> x, mean, lo, hi;
@@ -207,6 +246,7 @@ std::string chart_svg(const Summary& s, const std::string& task) {
     }
     curves.push_back(cv);
   }
+  // Bands of a few seeds can be very wide: the view stops at -3 and 3 (a curve beyond runs along the edge).
   y_min = std::max(y_min, -3.0), y_max = std::min(y_max, 3.0);
   auto px = [&](double x) { return L + (W - L - R) * x / x_max; };
   auto py = [&](double y) {
@@ -217,54 +257,66 @@ std::string chart_svg(const Summary& s, const std::string& task) {
   o << "<text x='" << L << "' y='18' class='title'>" << task << "</text>";
   o << "<rect x='" << L << "' y='" << T << "' width='" << W - L - R << "' height='" << H - T - B
     << "' fill='none' stroke='#999'/>";
+  for (double v : round_ticks(y_min, y_max, 6)) {
+    o << "<line x1='" << L << "' x2='" << W - R << "' y1='" << py(v) << "' y2='" << py(v)
+      << "' stroke='#eee'/><text x='" << L - 6 << "' y='" << py(v) + 4 << "' text-anchor='end' class='ytick'>"
+      << fmt(std::abs(v) < 1e-12 ? 0.0 : v, std::abs(v - std::round(v)) < 1e-9 ? 0 : 1) << "</text>";
+  }
+  for (double v : round_ticks(0, x_max, 5)) {
+    o << "<line x1='" << px(v) << "' x2='" << px(v) << "' y1='" << T << "' y2='" << H - B
+      << "' stroke='#eee'/><text x='" << px(v) << "' y='" << H - B + 15
+      << "' text-anchor='middle' class='xtick'>" << steps_label(v) << "</text>";
+  }
   for (double level : {0.0, 1.0}) {
     o << "<line x1='" << L << "' x2='" << W - R << "' y1='" << py(level) << "' y2='" << py(level)
-      << "' stroke='#888' stroke-dasharray='4 3'/><text x='" << L - 6 << "' y='" << py(level) + 4
-      << "' text-anchor='end'>" << fmt(level, 0) << "</text>";
+      << "' stroke='#888' stroke-dasharray='4 3'/>";
   }
-  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - 8 << "' text-anchor='middle'>agent-steps ("
-    << fmt(x_max / 1e6, 2) << " M at the right edge)</text>";
+  o << "<text x='" << (L + W - R) / 2 << "' y='" << H - B + 32 << "' text-anchor='middle'>agent-steps</text>";
   o << "<text x='14' y='" << (T + H - B) / 2 << "' transform='rotate(-90 14 " << (T + H - B) / 2
-    << ")' text-anchor='middle'>normalised return</text>";
+    << ")' text-anchor='middle'>normalised return (0 random, 1 best)</text>";
+  double legend_x = L;
   for (size_t c = 0; c < curves.size(); ++c) {
     const Curve& cv = curves[c];
-    if (cv.x.empty()) continue;
     const char* colour = kColours[c % 6];
-    o << "<polygon fill='" << colour << "' fill-opacity='0.18' stroke='none' points='";
-    for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.hi[i]) << " ";
-    for (size_t i = cv.x.size(); i-- > 0;) o << px(cv.x[i]) << "," << py(cv.lo[i]) << " ";
-    o << "'/><polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
-    for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.mean[i]) << " ";
-    o << "'/>";
-    o << "<text x='" << W - R - 4 << "' y='" << T + 16 + 16 * c << "' text-anchor='end' fill='" << colour
-      << "'>" << s.conditions[c] << "</text>";
+    if (!cv.x.empty()) {
+      o << "<polygon fill='" << colour << "' fill-opacity='0.18' stroke='none' points='";
+      for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.hi[i]) << " ";
+      for (size_t i = cv.x.size(); i-- > 0;) o << px(cv.x[i]) << "," << py(cv.lo[i]) << " ";
+      o << "'/><polyline fill='none' stroke='" << colour << "' stroke-width='2' points='";
+      for (size_t i = 0; i < cv.x.size(); ++i) o << px(cv.x[i]) << "," << py(cv.mean[i]) << " ";
+      o << "'/>";
+    }
+    o << "<text x='" << legend_x << "' y='" << H - 10 << "' fill='" << colour << "' class='legend'>"
+      << html_escape(s.conditions[c]) << "</text>";
+    legend_x += 14 + 7.0 * double(s.conditions[c].size());
   }
   o << "</svg>";
   return o.str();
-}
-
-std::string html_escape(const std::string& text) {
-  std::string out;
-  for (char ch : text) {
-    if (ch == '<')
-      out += "&lt;";
-    else if (ch == '>')
-      out += "&gt;";
-    else if (ch == '&')
-      out += "&amp;";
-    else
-      out += ch;
-  }
-  return out;
 }
 
 std::string page_html(const Summary& s, const json& settings) {
   std::ostringstream o;
   o << "<!DOCTYPE html><html><head><meta charset='utf-8'><title>hns eval</title><style>"
        "body{font-family:sans-serif;margin:20px;max-width:1100px}svg.chart{margin:6px;font-size:12px}"
-       ".title{font-weight:bold;font-size:14px}table{border-collapse:collapse}td,th{border:1px solid #ccc;"
-       "padding:3px 8px;text-align:right}td:first-child{text-align:left}</style></head><body>";
-  o << "<h1>hns eval: transfer suite</h1><p>" << html_escape(settings.dump()) << "</p>";
+       ".title{font-weight:bold;font-size:14px}table{border-collapse:collapse;margin:8px 0}td,th{border:1px "
+       "solid "
+       "#ccc;padding:3px 8px;text-align:right}td:first-child{text-align:left}table.settings "
+       "th,table.settings td"
+       "{text-align:left;vertical-align:top}table.settings td{max-width:900px}</style></head><body>";
+  o << "<h1>hns eval: transfer suite</h1><table class='settings'>";
+  for (const auto& [key, value] : settings.items()) {
+    // An object (the training config) as "key value" pairs that wrap, not one long line of JSON.
+    std::string text;
+    if (value.is_object()) {
+      for (const auto& [k, v] : value.items()) {
+        text += (text.empty() ? "" : ", ") + k + " " + (v.is_string() ? v.get<std::string>() : v.dump());
+      }
+    } else {
+      text = value.is_string() ? value.get<std::string>() : value.dump();
+    }
+    o << "<tr><th>" << html_escape(key) << "</th><td>" << html_escape(text) << "</td></tr>";
+  }
+  o << "</table>";
   o << "<p>Each line is the mean over seeds of a condition's return, smoothed over " << kSmooth
     << " iterations and normalised per task: 0 is the uniformly random policy's return, 1 the best "
        "condition's final return (the mean of its last "

@@ -365,6 +365,9 @@ if "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 1 --iterations 2 --envs
      --pretrained "lb=$tmp/lb.bin" --threads 1 >"$tmp/log" 2>&1 &&
    [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 2 ] &&
    grep -q "| lockbox |" "$tmp/eval/eval.md" && grep -q "<svg" "$tmp/eval/eval.html" &&
+   [ "$(grep -o "class='xtick'" "$tmp/eval/eval.html" | wc -l)" -ge 2 ] &&
+   grep -q "<table class='settings'><tr><th>envs</th>" "$tmp/eval/eval.html" &&
+   grep -q ">normalised return (0 random, 1 best)</text>" "$tmp/eval/eval.html" &&
    "$hns" eval --out "$tmp/eval" --tasks lockbox --seeds 2 --iterations 2 --envs 2 --random-episodes 4 \
      --threads 1 --resume >"$tmp/log2" 2>&1 &&
    [ "$(grep -c "iteration 2/2" "$tmp/log2")" -eq 2 ] && [ "$(grep -c '"task"' "$tmp/eval/eval.json")" -eq 4 ] &&
