@@ -9,9 +9,10 @@ HNS_PACKAGES=(build-essential cmake pkg-config libode-dev libeigen3-dev libxsimd
               python3 git valgrind python3-dev pybind11-dev python3-numpy python3-pytest
               libopenmpi-dev openmpi-bin libgd-dev
               libmujoco-dev)  # test-only: the physics parity suite runs the original's engine (MuJoCo)
-# Optional test-only packages: headless Chromium for the replay page tests. If they cannot be installed
+# Optional test-only packages: headless Chromium for the replay page tests, PyTorch for the PyTorch PPO
+# example's test. If they cannot be installed
 # (no network, no root), the tests that need them report themselves skipped; the build goes on.
-HNS_TEST_PACKAGES=(chromium)
+HNS_TEST_PACKAGES=(chromium python3-torch)
 
 # hns_apt_install required|optional PACKAGE...: installs the packages that are missing. A failure is fatal
 # for required packages and a warning for optional ones.
