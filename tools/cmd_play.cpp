@@ -2,7 +2,7 @@
 //
 //   hns play [--scene NAME (physics::kSceneNames)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
 //   [--envs N]
-//            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE
+//            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE [--gif ANIMATION]
 #include <algorithm>
 #include <cstdio>
 #include <memory>
@@ -16,6 +16,7 @@
 #include "ppo/policy.hpp"
 #include "replay/play.hpp"
 #include "replay/recorder.hpp"
+#include "replay/render.hpp"
 #include "replay/trajectory.hpp"
 
 namespace hns::tools {
@@ -36,11 +37,13 @@ struct PlayOptions {
   int threads = 1;
   std::optional<int> hiders, seekers, boxes, ramps;
   std::string out;
+  std::string gif;  // also an animated GIF of the recorded episodes (replay/render.hpp)
 };
 
 int run_play(const PlayOptions& opt) {
   std::unique_ptr<ppo::Policy> policy;
   check_output_path("--out", opt.out, {opt.checkpoint});
+  if (!opt.gif.empty()) check_output_path("--gif", opt.gif, {opt.checkpoint, opt.out});
   if (!opt.checkpoint.empty()) {
     try {
       policy = ppo::Policy::from_checkpoint(opt.checkpoint, opt.seed);
@@ -91,6 +94,16 @@ int run_play(const PlayOptions& opt) {
   }
   std::printf("  wrote %s (%.1f KB); view it with: hns replay %s --html replay.html\n", opt.out.c_str(),
               bytes / 1024.0, opt.out.c_str());
+  if (!opt.gif.empty()) {
+    // The recording as written (so the animation shows exactly the file's episodes).
+    const TrajectoryFile file = read_trajectory(opt.out);
+    std::vector<const TrajectoryEpisode*> episodes;
+    for (const TrajectoryEpisode& ep : file.episodes) episodes.push_back(&ep);
+    int pictures = 0;
+    const std::string gif = encode_gif(episodes, GifOptions{}, &pictures);
+    write_atomically(opt.gif, gif);
+    std::printf("  wrote %s (%d pictures, %.1f KB)\n", opt.gif.c_str(), pictures, gif.size() / 1024.0);
+  }
   return 0;
 }
 
@@ -121,6 +134,8 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--boxes", opt->boxes, "Fix the box count")->check(CLI::Range(0, 32));
   cmd->add_option("--ramps", opt->ramps, "Fix the ramp count")->check(CLI::Range(0, 16));
   cmd->add_option("--out", opt->out, "Trajectory file to write")->required();
+  cmd->add_option("--gif", opt->gif,
+                  "Also write an animated GIF of the episodes (320 px; hns replay --gif has the options)");
   commands.push_back({cmd, [opt] {
                         opt->seed = parse_seed("--seed", opt->seed_text);
                         return run_play(*opt);

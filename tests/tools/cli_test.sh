@@ -149,10 +149,12 @@ else
   failed=$((failed + 1))
   echo "FAIL: play + replay run"; cat "$tmp/log"
 fi
-# The same recording as an animated GIF (one picture per frame of 2 episodes of 81 frames), and neither
-# output asked for is refused.
+# The same recording as an animated GIF (one picture per frame of 2 episodes of 81 frames), from replay and
+# straight from play; neither output asked for is refused.
 if "$hns" replay "$tmp/q.traj" --gif "$tmp/q.gif" --size 96 >"$tmp/log" 2>&1 && [ ! -e "$tmp/q.gif.tmp" ] &&
-   [ "$(head -c 6 "$tmp/q.gif")" = "GIF89a" ] && grep -q "162 pictures of 96 x 96 px" "$tmp/log"; then
+   [ "$(head -c 6 "$tmp/q.gif")" = "GIF89a" ] && grep -q "162 pictures of 96 x 96 px" "$tmp/log" &&
+   "$hns" play --scene quadrant --episodes 2 --envs 2 --seed 4 --out "$tmp/q2.traj" --gif "$tmp/q2.gif" >>"$tmp/log" 2>&1 &&
+   [ "$(head -c 6 "$tmp/q2.gif")" = "GIF89a" ] && grep -q "q2.gif (162 pictures" "$tmp/log"; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
