@@ -129,8 +129,6 @@ GeomInfo* info(dGeomID g) {
   return static_cast<GeomInfo*>(dGeomGetData(g));
 }
 
-// Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
-// max(μ1, μ2) (SPEC §1.2, Coulomb pyramid scaled by the normal force).
 // A sphere (an agent's body or arm) against the ramp's wedge, the one convex of the world, by the exact
 // collider (sphere_convex.hpp) instead of ODE's; the contact as dCollide(g1, g2) would give it (normal out of
 // g2 into g1). 0 or 1 contacts.
@@ -153,6 +151,8 @@ int collide_sphere_ramp(dGeomID g1, dGeomID g2, dContactGeom* contact) {
   return 1;
 }
 
+// Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
+// max(μ1, μ2) (SPEC §1.2; ODE's friction pyramid scaled by the normal force, turned along the slip below).
 void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b2) {
   dContact contact[kMaxContactsPerPair];
   const int c1 = dGeomGetClass(g1), c2 = dGeomGetClass(g2);
