@@ -213,7 +213,7 @@ std::string encode_gif(const std::vector<const TrajectoryEpisode*>& episodes, co
   const int size = options.size;
   const Image first(gdImageCreate(size, size));
   if (!first) throw std::runtime_error("out of memory for a picture");
-  const Palette pal(first.get());
+  const Palette pal(first.get());  // the colours of `first` become the GIF's global colour map
   std::string gif;
   int n = 0;
   // libgd hands each piece back as a buffer of n bytes to free (n is set by the call, so read it after).
