@@ -177,7 +177,7 @@ void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b
     // bottom corners by their depth, as in MuJoCo, instead of the rigid solver's arbitrary split, which
     // could put the floor's friction on any corner and turn a pushed ramp or long box the wrong way. (An
     // agent touches the floor at one point: it stays rigid and at its exact height.)
-    if (ode->floor_cfm > 0 && (dGeomGetClass(g1) == dPlaneClass || dGeomGetClass(g2) == dPlaneClass) &&
+    if (ode->floor_cfm > 0 && (c1 == dPlaneClass || c2 == dPlaneClass) &&
         info(g1) != &ode->agent_info && info(g2) != &ode->agent_info) {
       contact[i].surface.mode |= dContactSoftCFM;
       contact[i].surface.soft_cfm = ode->floor_cfm;
