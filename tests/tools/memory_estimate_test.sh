@@ -10,6 +10,7 @@ tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 passed=0
 failed=0
+skipped=0
 fail() {
   failed=$((failed + 1))
   echo "FAIL: $*"
@@ -31,6 +32,13 @@ PY
 )"
   local est
   est="$(grep -o 'about [0-9]* MiB estimated' "$tmp/out.log" | grep -o '[0-9]*')"
+  # A machine without the free memory for the run refuses it (exit 2, saying what is available): nothing to
+  # measure there, which is not a fault of the estimate.
+  if [ "$peak" -lt 0 ] && grep -q "this machine has .* available" "$tmp/out.log"; then
+    skipped=$((skipped + 1))
+    echo "SKIP: $name: $(grep -o 'needs about.*available' "$tmp/out.log")"
+    return
+  fi
   if [ "$peak" -lt 0 ] || [ -z "$est" ]; then
     fail "$name: the run failed"
     cat "$tmp/out.log"
@@ -63,5 +71,7 @@ else
   fail "ulimit -v below the estimate: exit $rc, output: $out"
 fi
 
-echo "memory estimate: $passed passed, $failed failed"
-[ "$failed" -eq 0 ]
+echo "memory estimate: $passed passed, $failed failed, $skipped skipped (not enough free memory)"
+[ "$failed" -eq 0 ] || exit 1
+# Every run refused for free memory: the estimate was not measured at all.
+[ "$skipped" -lt 4 ] || exit 77
