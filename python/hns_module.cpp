@@ -967,9 +967,18 @@ PYBIND11_MODULE(_hns, m) {
   m.doc() = "hns: the batch hide-and-seek simulator, trained policies and recordings (docs/python.md)";
   m.attr("__version__") = HNS_VERSION;
   m.attr("isa") = HNS_ISA_SETTING;
-  py::tuple scenes(hns::physics::kSceneNames.size());
-  for (size_t i = 0; i < scenes.size(); ++i) scenes[i] = hns::physics::kSceneNames[i];
+  py::tuple scenes(hns::physics::kScenes.size());
+  py::dict scene_info;
+  for (size_t i = 0; i < scenes.size(); ++i) {
+    const hns::physics::SceneInfo& s = hns::physics::kScenes[i];
+    scenes[i] = s.name;
+    py::dict row;
+    row["family"] = hns::physics::family_name(s.family);
+    row["summary"] = s.summary;
+    scene_info[s.name] = row;
+  }
   m.attr("scenes") = scenes;
+  m.attr("scene_info") = scene_info;
   py::register_exception<hns::replay::TrajectoryError>(m, "TrajectoryError", PyExc_ValueError);
 
   py::class_<BatchEnv>(m, "BatchEnv", py::dynamic_attr(), R"doc(

@@ -12,6 +12,7 @@
 
 #include "cli.hpp"
 #include "nn/kernels.hpp"
+#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/trainer.hpp"
@@ -143,6 +144,17 @@ uint64_t parse_seed(const std::string& flag, const std::string& text) {
 
 std::string count_text(long long n, const std::string& noun, const std::string& plural_noun) {
   return std::to_string(n) + " " + (n == 1 ? noun : plural_noun.empty() ? noun + "s" : plural_noun);
+}
+
+std::string scene_help() {
+  auto pad = [](std::string s, size_t width) {
+    s.resize(std::max(s.size() + 1, width), ' ');
+    return s;
+  };
+  std::string text = "Scenes:\n";
+  for (const physics::SceneInfo& s : physics::kScenes)
+    text += "  " + pad(s.name, 18) + pad(physics::family_name(s.family), 15) + s.summary + "\n";
+  return text;
 }
 
 std::string threads_text(int requested) {

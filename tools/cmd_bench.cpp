@@ -261,9 +261,10 @@ int run_nn_bench(const BenchOptions& opt) {
 void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand("bench", "Throughput of the simulator with random actions");
-  cmd->add_option("--scene", opt->scene, "Scene preset")
-      ->check(CLI::IsMember(std::vector<std::string>(phys::kSceneNames.begin(), phys::kSceneNames.end())))
+  cmd->add_option("--scene", opt->scene, "Scene (the list below)")
+      ->check(CLI::IsMember(phys::scene_names()))
       ->capture_default_str();
+  cmd->footer(scene_help());
   cmd->add_option("--envs", opt->envs, "Number of envs")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();

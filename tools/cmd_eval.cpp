@@ -351,20 +351,17 @@ int run_eval(const EvalOptions& opt) {
   Summary s;
   s.tasks = split_list(opt.tasks);
   if (s.tasks.empty()) throw physics::ConfigError("--tasks '" + opt.tasks + "': no task given");
+  const std::string transfer = physics::scene_list(", ", physics::SceneFamily::kTransfer);
   for (const std::string& t : s.tasks) {
-    physics::WorldConfig w;
-    try {
-      w = physics::world_preset(t);
-    } catch (const physics::ConfigError& e) {
-      throw physics::ConfigError(std::string("--tasks: ") + e.what());
-    }
-    if (w.task == physics::WorldConfig::Task::kCounting)
+    const physics::SceneInfo* scene = physics::find_scene(t);
+    if (scene == nullptr)
+      throw physics::ConfigError("--tasks: '" + t + "' is not a scene of hns; the transfer tasks are " +
+                                 transfer);
+    if (scene->family == physics::SceneFamily::kProbe)
       throw physics::ConfigError("--tasks: '" + t +
                                  "' is a probe of a frozen policy, not a task to train: run hns counting");
-    if (!w.is_transfer_task())
-      throw physics::ConfigError("--tasks: '" + t +
-                                 "' is not a transfer task (lockbox, lock-and-return, "
-                                 "sequential-lock, shelter, blueprint)");
+    if (scene->family != physics::SceneFamily::kTransfer)
+      throw physics::ConfigError("--tasks: '" + t + "' is not a transfer task (" + transfer + ")");
     if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
   }
@@ -588,7 +585,10 @@ void add_eval_command(CLI::App& app, std::vector<Command>& commands) {
       "eval",
       "Transfer suite: train each task from scratch and from checkpoints over seeds (docs/transfer.md)");
   cmd->add_option("--out", opt->out, "Folder for eval.json, eval.md and eval.html")->required();
-  cmd->add_option("--tasks", opt->tasks, "Comma-separated transfer scenes")->capture_default_str();
+  cmd->add_option(
+         "--tasks", opt->tasks,
+         "Comma-separated transfer tasks, of " + physics::scene_list(", ", physics::SceneFamily::kTransfer))
+      ->capture_default_str();
   cmd->add_option("--seeds", opt->seeds, "Seeds per task and condition (1 .. N)")->capture_default_str();
   cmd->add_option("--iterations", opt->iterations, "Training iterations per run (the fixed budget)")
       ->check(CLI::Range(1, 1000000))

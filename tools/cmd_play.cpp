@@ -1,6 +1,6 @@
 // `hns play`: records whole episodes into a trajectory file for `hns replay` (docs/trajectory-format.md).
 //
-//   hns play [--scene NAME (physics::kSceneNames)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
+//   hns play [--scene NAME (physics::kScenes)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
 //   [--envs N]
 //            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE [--gif ANIMATION]
 #include <algorithm>
@@ -113,8 +113,9 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<PlayOptions>();
   CLI::App* cmd =
       app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
-  cmd->add_option("--scene", opt->scene, "Scene preset (default quadrant, or the checkpoint's)")
-      ->check(CLI::IsMember(std::vector<std::string>(phys::kSceneNames.begin(), phys::kSceneNames.end())));
+  cmd->add_option("--scene", opt->scene, "Scene (the list below; default quadrant, or the checkpoint's)")
+      ->check(CLI::IsMember(phys::scene_names()));
+  cmd->footer(scene_help());
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
   cmd->add_option("--checkpoint", opt->checkpoint, "Act with the policy of a training checkpoint (its scene)")
       ->excludes(random);

@@ -690,8 +690,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* sub = app.add_subcommand("train", "Train hide-and-seek agents with PPO self-play");
   sub->add_option("--config", opt->config_file, "Flat JSON config file (keys as in a run's config.json)");
   const ppo::TrainConfig defaults;
-  std::string scenes;
-  for (const char* name : physics::kSceneNames) scenes += std::string(scenes.empty() ? "" : " | ") + name;
+  const std::string scenes = physics::scene_list(" | ");
   auto dflt = [](const auto& value) {
     if constexpr (std::is_convertible_v<decltype(value), std::string>) {
       return " (default " + std::string(value) + ")";
@@ -700,6 +699,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
     }
   };
   sub->add_option("--scene", opt->scene, scenes + dflt(defaults.scene));
+  sub->footer(scene_help());
   sub->add_option("--model", opt->model, "small | paper" + dflt(defaults.model));
   sub->add_option("--iterations", opt->iterations, "Total iterations of the run" + dflt(defaults.iterations));
   sub->add_option("--seed", opt->seed,

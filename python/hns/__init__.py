@@ -54,6 +54,7 @@ from ._hns import (  # noqa: F401
     isa,
     read_trajectory,
     record,
+    scene_info,
     scenes,
 )
 from ._hns import _detect_stages_json, _read_metrics_json

@@ -4,21 +4,42 @@
 
 namespace hns::physics {
 
+const char* family_name(SceneFamily family) {
+  switch (family) {
+    case SceneFamily::kHideAndSeek:
+      return "hide-and-seek";
+    case SceneFamily::kFood:
+      return "food";
+    case SceneFamily::kTransfer:
+      return "transfer";
+    case SceneFamily::kProbe:
+      return "probe";
+  }
+  return "?";
+}
+
+const SceneInfo* find_scene(std::string_view name) {
+  for (const SceneInfo& s : kScenes)
+    if (name == s.name) return &s;
+  return nullptr;
+}
+
+std::vector<std::string> scene_names(std::optional<SceneFamily> family) {
+  std::vector<std::string> names;
+  for (const SceneInfo& s : kScenes)
+    if (!family || s.family == *family) names.emplace_back(s.name);
+  return names;
+}
+
+std::string scene_list(const std::string& separator, std::optional<SceneFamily> family) {
+  std::string list;
+  for (const std::string& n : scene_names(family)) list += (list.empty() ? "" : separator) + n;
+  return list;
+}
+
 WorldConfig world_preset(const std::string& name) {
-  if (name == "quadrant") return WorldConfig::quadrant();
-  if (name == "full") return WorldConfig::full();
-  if (name == "empty") return WorldConfig::empty();
-  if (name == "lockbox") return WorldConfig::lockbox();
-  if (name == "lock-and-return") return WorldConfig::lock_and_return();
-  if (name == "sequential-lock") return WorldConfig::sequential_lock();
-  if (name == "shelter") return WorldConfig::shelter();
-  if (name == "blueprint") return WorldConfig::blueprint();
-  if (name == "object-counting") return WorldConfig::object_counting();
-  if (name == "food") return WorldConfig::food_game();
-  if (name == "dynamic-food") return WorldConfig::dynamic_food_game();
-  std::string names;
-  for (const char* n : kSceneNames) names += std::string(names.empty() ? "" : ", ") + n;
-  throw ConfigError("scene = '" + name + "' is invalid: must be one of " + names);
+  if (const SceneInfo* s = find_scene(name)) return s->preset();
+  throw ConfigError("scene = '" + name + "' is invalid: must be one of " + scene_list(", "));
 }
 
 void apply_overrides(WorldConfig& config, const CountOverrides& counts) {

@@ -1,25 +1,66 @@
-// Named world presets and per-run count overrides shared by the CLI and the benchmarks.
+// The registry of scenes (every named world preset, with its description and family) and per-run count
+// overrides, shared by the CLI, Python, the benchmarks and the docs test.
 #pragma once
 
 #include <array>
 #include <optional>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include "physics/world.hpp"
 
 namespace hns::physics {
 
-// Every scene name world_preset() knows, in the order the CLI lists them.
-inline constexpr std::array<const char*, 11> kSceneNames = {
-    "quadrant", "full",      "empty",           "lockbox", "lock-and-return", "sequential-lock",
-    "shelter",  "blueprint", "object-counting", "food",    "dynamic-food"};
+// What a scene is for; decides which commands take it (hns eval --tasks takes kTransfer, hns counting
+// kProbe).
+enum class SceneFamily : uint8_t {
+  kHideAndSeek,  // the hide-and-seek game (hns train's main use)
+  kFood,         // the paper's food variants of the full game (docs/food.md)
+  kTransfer,     // single-agent transfer tasks (docs/transfer.md; hns eval --tasks)
+  kProbe,        // a probe of a frozen policy without reward (hns counting)
+};
+const char* family_name(SceneFamily family);
 
-// "quadrant" (SPEC §14.5 quadrant game), "full" (the paper's full game on random rooms), "empty", "lockbox"
-// (one agent must reach and lock a cube: the box-locking task of SPEC §9.2), and the transfer tasks
-// "lock-and-return", "sequential-lock" (SPEC §9.2), "shelter" (§9.3), "blueprint" (§9.1) and
-// "object-counting" (the paper's §6),
-// docs/transfer.md; and the food variants of the full game "food" and "dynamic-food" (§5.4, docs/food.md).
-// Throws ConfigError naming the allowed names.
+struct SceneInfo {
+  const char* name;     // what --scene, hns.BatchEnv(scene=...) and trajectory headers say
+  const char* summary;  // one line, for --help and the docs
+  SceneFamily family;
+  WorldConfig (*preset)();
+};
+
+// Every scene, in the order the CLI and the docs list them. A scene exists exactly when it has a row here.
+inline constexpr std::array<SceneInfo, 11> kScenes = {{
+    {"quadrant", "a corner room with doors (the paper's quadrant game)", SceneFamily::kHideAndSeek,
+     &WorldConfig::quadrant},
+    {"full", "random rooms (the paper's full game)", SceneFamily::kHideAndSeek, &WorldConfig::full},
+    {"empty", "the arena without inner walls (short episodes: benches and tests)", SceneFamily::kHideAndSeek,
+     &WorldConfig::empty},
+    {"lockbox", "one agent must reach and lock a cube", SceneFamily::kTransfer, &WorldConfig::lockbox},
+    {"lock-and-return", "lock the cube in one of 6 rooms, then return to the spawn point",
+     SceneFamily::kTransfer, &WorldConfig::lock_and_return},
+    {"sequential-lock", "lock 4 cubes in index order in 3 door-less rooms", SceneFamily::kTransfer,
+     &WorldConfig::sequential_lock},
+    {"shelter", "hide a cylinder from rays with 8 boxes (build a shelter)", SceneFamily::kTransfer,
+     &WorldConfig::shelter},
+    {"blueprint", "place cubes on 1-4 construction sites", SceneFamily::kTransfer, &WorldConfig::blueprint},
+    {"object-counting", "a frozen policy watches 6 cubes slide out of view (no reward; hns counting)",
+     SceneFamily::kProbe, &WorldConfig::object_counting},
+    {"food", "the full game with 5 food items in the middle that respawn", SceneFamily::kFood,
+     &WorldConfig::food_game},
+    {"dynamic-food", "3 hiders, 2 seekers, 8 elongated boxes, one food item that moves when eaten",
+     SceneFamily::kFood, &WorldConfig::dynamic_food_game},
+}};
+
+// The scene called `name`, or nullptr.
+const SceneInfo* find_scene(std::string_view name);
+// The names of every scene (of one family when given), in registry order.
+std::vector<std::string> scene_names(std::optional<SceneFamily> family = std::nullopt);
+// Those names joined by `separator`.
+std::string scene_list(const std::string& separator, std::optional<SceneFamily> family = std::nullopt);
+
+// The preset of scene `name` (kScenes; docs/transfer.md, docs/food.md). Throws ConfigError naming the
+// allowed names.
 WorldConfig world_preset(const std::string& name);
 
 // Fixed counts that replace what the scene would draw per episode (unset = keep the preset's range).

@@ -21,7 +21,7 @@ inline constexpr int64_t kMaxRolloutRows = int64_t(1) << 24;
 
 struct TrainConfig {
   // Game and model.
-  std::string scene = "quadrant";  // physics::kSceneNames (physics::world_preset)
+  std::string scene = "quadrant";  // physics::kScenes (physics::world_preset)
   std::string model = "small";     // small | paper (nn::net_preset)
   int horizon = 0;                 // env steps per episode; 0 = the scene preset's
   // Fixed counts per episode instead of the scene's ranges (-1 = the scene's), for the hide-and-seek

@@ -372,8 +372,7 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
   // Names the pages show: only hns's own (a page built from a file someone sent must not take markup from
   // it).
   ep.scene = f.string("scene");
-  if (std::find(physics::kSceneNames.begin(), physics::kSceneNames.end(), ep.scene) ==
-      physics::kSceneNames.end())
+  if (physics::find_scene(ep.scene) == nullptr)
     f.fail("scene", "is not a scene of hns" + f.got(c.header["scene"]));
   ep.layout = f.string("layout");
   try {

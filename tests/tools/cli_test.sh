@@ -388,7 +388,7 @@ cp "$tmp/run/checkpoint.bin" "$tmp/lb.bin"
 expect_fail 2 "condition lb .*changed since its first runs" eval --out "$tmp/eval" --tasks lockbox \
   --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --resume
 expect_fail 2 "not a transfer task" eval --out "$tmp/eval-bad" --tasks quadrant
-expect_fail 2 "tasks: scene = 'moon'" eval --out "$tmp/eval-bad" --tasks moon
+expect_fail 2 "--tasks: 'moon' is not a scene of hns" eval --out "$tmp/eval-bad" --tasks moon
 expect_fail 2 "cannot start shelter: .*entity types" eval --out "$tmp/eval-bad" --tasks shelter \
   --pretrained "lb=$tmp/init-good.bin"
 expect_fail 2 "seed is set by hns eval" eval --out "$tmp/eval-bad" --set seed=2

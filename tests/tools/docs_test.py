@@ -69,6 +69,41 @@ for doc in docs:
                 if scene not in scenes:
                     failures.append(f"{name}: --scene {scene} is not a scene of hns ({code.strip()})")
 
+# The scene registry, as every command that takes --scene prints it: rows of name, family, summary.
+def registry_of(sub):
+    text = help_text(sub)
+    if "\nScenes:\n" not in text:
+        failures.append(f"hns {sub} --help has no Scenes: list")
+        return []
+    return [tuple(re.split(r"\s{2,}", line.strip(), maxsplit=2)) for line in
+            text.split("\nScenes:\n", 1)[1].splitlines() if line.startswith("  ")]
+
+
+registry = registry_of("train")
+checked += 1
+if [row[0] for row in registry] != scenes:
+    failures.append(f"hns train --help: the Scenes list {[r[0] for r in registry]} differs from --scene's {scenes}")
+for sub in ("play", "bench"):
+    checked += 1
+    if registry_of(sub) != registry:
+        failures.append(f"hns {sub} --help lists other scenes than hns train --help")
+# README's scene table: one row per scene, same family, the summary as the program prints it.
+readme_rows = re.findall(r"^\| `([a-z-]+)` \| ([a-z-]+) \| (.*) \|$", (root / "README.md").read_text(), re.M)
+checked += 1
+if [r[0] for r in readme_rows] != [r[0] for r in registry]:
+    failures.append(f"README.md's scene table {[r[0] for r in readme_rows]} differs from hns train --help's "
+                    f"{[r[0] for r in registry]}")
+for (name, family, what), row in zip(readme_rows, registry):
+    checked += 1
+    if len(row) != 3 or family != row[1] or not what.replace("`", "").startswith(row[2]):
+        failures.append(f"README.md's scene table row `{name}` ({family}: {what}) differs from the program's {row}")
+# hns eval takes the transfer family, and its --help names exactly those.
+transfer = [row[0] for row in registry if len(row) == 3 and row[1] == "transfer"]
+eval_help = " ".join(help_text("eval").split())
+checked += 1
+if "transfer tasks, of " + ", ".join(transfer) not in eval_help:
+    failures.append(f"hns eval --help does not name the transfer scenes {transfer}")
+
 readme_code = "\n".join(code_of((root / "README.md").read_text()))
 for scene in scenes:
     checked += 1
@@ -77,15 +112,20 @@ for scene in scenes:
 
 if package_dir:
     out = subprocess.run(
-        [sys.executable, "-c", "import hns; print(' '.join(hns.scenes))"],
+        [sys.executable, "-c", "import hns; print(' '.join(hns.scenes)); "
+         "print(' '.join(hns.scene_info[s]['family'] for s in hns.scenes))"],
         capture_output=True, text=True, env={"PYTHONPATH": package_dir}, timeout=60,
     )
     if out.returncode != 0:
         failures.append("import hns failed: " + out.stderr.strip())
     else:
         checked += 1
-        if sorted(out.stdout.split()) != sorted(scenes):
-            failures.append(f"hns.scenes {out.stdout.split()} differs from hns train --help's {scenes}")
+        names, families = (out.stdout.splitlines() + ["", ""])[:2]
+        if names.split() != scenes:
+            failures.append(f"hns.scenes {names.split()} differs from hns train --help's {scenes}")
+        checked += 1
+        if families.split() != [row[1] for row in registry if len(row) == 3]:
+            failures.append(f"hns.scene_info's families {families.split()} differ from hns train --help's")
 
 for f in failures:
     print("FAIL:", f)
