@@ -46,7 +46,7 @@ void run(benchmark::State& state, WorldConfig config, bool visibility = false) {
   state.counters["substeps"] = config.physics.substeps;
 }
 
-// Quadrant game, 2 hiders v 2 seekers, 2 cubes, 1 ramp (SPEC §2.1).
+// Quadrant game, 2 hiders v 2 seekers, 2 cubes, 1 ramp (docs/game.md §2.1).
 void BM_WorldStepQuadrant(benchmark::State& state) {
   run(state, WorldConfig::quadrant());
 }

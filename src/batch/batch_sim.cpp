@@ -17,7 +17,7 @@ namespace hns::batch {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-constexpr float kOutOfBoundsReward = -10.0f;  // SPEC §5.2
+constexpr float kOutOfBoundsReward = -10.0f;  // docs/game.md §5.2
 constexpr float kAgentRadius = float(physics::kAgentRadius);
 constexpr float kArmRadius = float(physics::kArmRadius);
 // Every arm lies within this distance of its agent's centre, with 1.8 mm to spare (far above rounding).
@@ -38,7 +38,7 @@ int max_walls(const physics::SceneConfig& scene) {
   }
 }
 
-// The lidar fan (SPEC §4.2, §14.6): world-fixed horizontal directions 12° apart from +x, each 6 m long.
+// The lidar fan (docs/game.md §4.2, §14.6): world-fixed horizontal directions 12° apart from +x, each 6 m long.
 struct LidarFan {
   float dx[Layout::kLidar], dy[Layout::kLidar], dz[Layout::kLidar], length[Layout::kLidar];
   LidarFan() {
@@ -56,7 +56,7 @@ const float kCosHalfCone = float(std::cos(physics::kVisionHalfAngle));
 // Lines of sight one agent casts at most (other agents, boxes, ramps); the scene maxima keep far below it.
 constexpr int kMaxSightLines = 128;
 
-// prep_obs after t steps of an episode with `prep` preparation steps (SPEC §4.3): t / (prep + 1e-5), which
+// prep_obs after t steps of an episode with `prep` preparation steps (docs/game.md §4.3): t / (prep + 1e-5), which
 // first reads 1 after step prep + 1. Rounded to float that quotient would read 1 a step early once prep
 // exceeds a few hundred, so it is capped just below 1 until then.
 float prep_observation(int t, int prep) {
@@ -505,7 +505,7 @@ void BatchSim::build_shapes(int env) {
     s.shape_wedge_c[sw + k] = exists ? s.ramp_rot[2 * i] : 1.0f;
     s.shape_wedge_s[sw + k] = exists ? s.ramp_rot[2 * i + 1] : 0.0f;
   }
-  // Per agent: its body sphere, then its two arms (SPEC §1.2), placed by the agent's yaw.
+  // Per agent: its body sphere, then its two arms (docs/game.md §1.2), placed by the agent's yaw.
   const size_t ss = size_t(env) * L.shape_spheres;
   for (int a = 0; a < L.max_agents; ++a) {
     const size_t i = size_t(env) * L.max_agents + a;
@@ -524,7 +524,7 @@ void BatchSim::build_shapes(int env) {
 }
 
 namespace {
-// Cone test (SPEC §4.1): the target lies within 67.5° of the viewer's facing direction (−y at yaw 0).
+// Cone test (docs/game.md §4.1): the target lies within 67.5° of the viewer's facing direction (−y at yaw 0).
 bool in_cone(const float* viewer_pos, const float* viewer_rot, const float* target_pos) {
   const float dx = target_pos[0] - viewer_pos[0], dy = target_pos[1] - viewer_pos[1];
   const float fx = viewer_rot[1], fy = -viewer_rot[0];
@@ -562,7 +562,7 @@ ShapesView BatchSim::shapes(int env) const {
   return v;
 }
 
-// Vision (SPEC §4.1): a target is seen when its sight point lies in the viewer's cone and the first shape on
+// Vision (docs/game.md §4.1): a target is seen when its sight point lies in the viewer's cone and the first shape on
 // the segment from the viewer's centre to that point is the target itself (an agent's arms count as the
 // agent). Sight points are centres, a ramp's its centroid (physics::ramp_sight_point): all lie inside their
 // solid, so the segment always enters the target well before its end. Each viewer's lines of sight to the
@@ -627,7 +627,7 @@ void BatchSim::vision_env(int env) {
       physics::ramp_sight_point(p[0], p[1], p[2], ramp_rot[2 * r], ramp_rot[2 * r + 1], centroid);
       aim(centroid, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
     }
-    // A food item is a point, not a shape: seen when nothing lies on the segment to it (SPEC §4.1's rule for
+    // A food item is a point, not a shape: seen when nothing lies on the segment to it (docs/game.md §4.1's rule for
     // site targets), so the shape that must be hit first is none (-1).
     for (int f = 0; f < L.max_food; ++f) {
       if (food_exists[f] != 0) aim(food_pos + 3 * f, -1, &vis_food[a * L.max_food + f]);
@@ -647,7 +647,7 @@ void BatchSim::vision_env(int env) {
   }
 }
 
-// Lidar (SPEC §4.2, §14.6): per agent one fan of 30 world-fixed horizontal rays, the first hit within 6 m,
+// Lidar (docs/game.md §4.2, §14.6): per agent one fan of 30 world-fixed horizontal rays, the first hit within 6 m,
 // else 6. Empty agent slots read 0.
 void BatchSim::lidar_env(int env) {
   const Layout& L = layout_;
@@ -690,7 +690,7 @@ void BatchSim::rewards_env(int env) {
     return p[0] < rect[0] || p[0] > rect[2] || p[1] < rect[1] || p[1] > rect[3];
   };
 
-  // Joint zero-sum (SPEC §5.1): every hider gets -1 if any hider is seen by any seeker, else +1; seekers the
+  // Joint zero-sum (docs/game.md §5.1): every hider gets -1 if any hider is seen by any seeker, else +1; seekers the
   // opposite. Out of bounds replaces an agent's reward with -10; in the quadrant game any box or ramp out of
   // bounds costs everyone -10 (§5.2). Everything is 0 during the preparation phase.
   bool any_seen = false;
@@ -750,7 +750,7 @@ void BatchSim::rewards_env(int env) {
   if (n - hiders > 0) ret[1] += seeker_sum / (n - hiders);
   if (!prep) track_env(env, any_seen);
 
-  // Statistics at the end of the preparation phase (SPEC §7): when prep_obs first reads 1, after step
+  // Statistics at the end of the preparation phase (docs/game.md §7): when prep_obs first reads 1, after step
   // prep_steps + 1 (or at the last step of an episode too short for that).
   if (t == std::min(wc.prep_steps() + 1, wc.horizon)) {
     measure_env(env, s.stat_prep.data() + size_t(env) * Layout::kPrepStats);
@@ -758,7 +758,7 @@ void BatchSim::rewards_env(int env) {
   s.done[env] = world.done() ? 1 : 0;
 }
 
-// The shelter reward's rays (SPEC §9.3): 100 start points evenly spaced around the square [0.202, 5.798]² on
+// The shelter reward's rays (docs/game.md §9.3): 100 start points evenly spaced around the square [0.202, 5.798]² on
 // the floor, 25 per side, each side's from its first corner (counter-clockwise from (0.202, 0.202)) up to
 // but not including the next, aimed at the cylinder's centre. A ray
 // reaches the cylinder when nothing else lies on the segment from its start to the cylinder; the segments
@@ -800,7 +800,7 @@ void BatchSim::shelter_rewards_env(int env, float* reward) {
   std::fill_n(reward, layout_.max_agents, -kShelterRayCost * float(shelter_rays_reaching(env)));
 }
 
-// Blueprint construction (SPEC §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2,
+// Blueprint construction (docs/game.md §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2,
 // 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners are
 // (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box corner
 // of the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean. Completion:
@@ -898,7 +898,7 @@ void BatchSim::pose_counting_env(int env) {
   }
 }
 
-// The food variants (SPEC §5.4), after the step: every hider the previous observation let eat an item
+// The food variants (docs/game.md §5.4), after the step: every hider the previous observation let eat an item
 // (food_eat_ok) and within eat_radius of it eats 1 unit of it, outside the preparation phase; hiders that
 // would together eat more than is left share it. An item eaten up stays at 0 for respawn_steps steps (the
 // step it was emptied counts as the first), then its health resets, at a new spot with relocate. Each hider
@@ -962,7 +962,7 @@ void BatchSim::food_env(int env, float* reward, bool prep) {
   }
 }
 
-// The target of agent 0 (SPEC §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
+// The target of agent 0 (docs/game.md §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
 // in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
 // (kTargetNone). task_dist: the 2-D distance to it.
 void BatchSim::lockbox_retarget(int env) {
@@ -988,7 +988,7 @@ void BatchSim::lockbox_retarget(int env) {
   s.task_dist[env] = best_d;
 }
 
-// SPEC §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked box,
+// docs/game.md §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked box,
 // -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance to the
 // target, +scale x the old distance when the target box gets locked, -scale x the new target's distance when
 // a box gets unlocked; +success_reward every step the task is complete: all boxes locked (and in kLockReturn
@@ -1218,7 +1218,7 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   s.done[env] = 1;
 }
 
-// Observation tensors of every agent of the env (SPEC §4.3-§4.6, §14.1). Other agents come in circulant
+// Observation tensors of every agent of the env (docs/game.md §4.3-§4.6, §14.1). Other agents come in circulant
 // order i-1, i-2, ... (mod n); boxes and ramps in index order; padding slots are zero with mask 0.
 void BatchSim::observe_env(int env) {
   const Layout& L = layout_;
@@ -1271,7 +1271,7 @@ void BatchSim::observe_env(int env) {
     out[9] = float(hider[j]);
     out[10] = prep_obs;
   };
-  // Lock features of an object for agent a: it locked it, its team did, it is locked (SPEC §3.4).
+  // Lock features of an object for agent a: it locked it, its team did, it is locked (docs/game.md §3.4).
   auto lock_features = [&](bool locked, int locker, int a, float* out) {
     out[0] = locked && locker == a ? 1.0f : 0.0f;
     out[1] = locked && locker >= 0 && hider[locker] == hider[a] ? 1.0f : 0.0f;
@@ -1320,7 +1320,7 @@ void BatchSim::observe_env(int env) {
       mask_ramps[a * R + r] = vis_ramps[a * R + r];
       value_mask_ramps[a * R + r] = 1;
     }
-    // Construction sites (SPEC §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always visible.
+    // Construction sites (docs/game.md §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always visible.
     for (int c = 0; c < CS; ++c) {
       const size_t i = size_t(env) * CS + c;
       if (s.site_exists[i] == 0) continue;
@@ -1337,7 +1337,7 @@ void BatchSim::observe_env(int env) {
       mask_sites[a * C + c] = 1;
       value_mask_sites[a * C + c] = 1;
     }
-    // Food (SPEC §5.4): position and health, seen through vision; a hider may eat what it sees while no
+    // Food (docs/game.md §5.4): position and health, seen through vision; a hider may eat what it sees while no
     // hider is seen (unless eat_when_caught), which the next step's eating reads.
     for (int f = 0; f < F; ++f) {
       const size_t i = size_t(env) * F + f;

@@ -1,4 +1,4 @@
-// Ray casting against one env's shapes for line of sight and lidar (SPEC.md §4.1, §4.2, §14.6, §14.7).
+// Ray casting against one env's shapes for line of sight and lidar (docs/game.md §4.1, §4.2, §14.6, §14.7).
 //
 // The kernel casts a *fan*: rays that share one origin (an agent's lines of sight to its targets, or its 30
 // lidar rays). It is vectorised across rays with xsimd: each shape's own quantities (its frame, the origin

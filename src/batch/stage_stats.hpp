@@ -52,7 +52,7 @@ struct Rect {
   bool contains(float x, float y) const { return x >= x0 && x <= x1 && y >= y0 && y <= y1; }
 };
 
-// The quadrant room's interior (SPEC §2.3): x in [3.15, 5.85], y in [0.15, 3.05].
+// The quadrant room's interior (docs/game.md §2.3): x in [3.15, 5.85], y in [0.15, 3.05].
 Rect quadrant_room();
 
 // Height of an agent's centre above which it stands higher than an interior wall (on a box, a ramp's top

@@ -1,4 +1,4 @@
-// The hide-and-seek policy and value networks (SPEC.md §10.3 variant A; same structure, separate weights):
+// The hide-and-seek policy and value networks (docs/game.md §10.3 variant A; same structure, separate weights):
 //
 //   self [S] ---------------------------------------------.
 //   lidar [L] -> circ conv (K filters, kernel 3, relu) -> main = [self, conv] (S + L*K)
@@ -13,7 +13,7 @@
 // the caller normalised them already (ObsNormView::identity(): the trainer does it once per rollout row, for
 // both networks); entities with mask 0 are excluded from attention (as keys and queries) and from pooling, so
 // their features never reach an output. The policy uses the visibility masks, the value net
-// the omniscient ones (SPEC.md §4.6; see nn/actor_critic.hpp).
+// the omniscient ones (docs/game.md §4.6; see nn/actor_critic.hpp).
 //
 // Rows are agent-steps, sequence-major: row = b * steps + t for `sequences` sequences of `steps` steps
 // (inference: steps = 1, one row per agent). A Workspace holds every activation for one (sequences, steps)
@@ -31,7 +31,7 @@
 namespace hns::nn {
 
 // Observation sizes: parameters, so the simulator's configuration plugs in (defaults: the `full` scene with
-// yaw as cos/sin, SPEC.md §14.1).
+// yaw as cos/sin, docs/game.md §14.1).
 struct ObsShape {
   int self_features =
       11;  // x_self: position 3, yaw cos/sin 2, velocity 3, angular velocity 1, team bit, prep obs

@@ -1,4 +1,4 @@
-// Categorical action heads (SPEC.md §10.2 _init_policy_out): the policy's logits row is split into
+// Categorical action heads (docs/game.md §10.2 _init_policy_out): the policy's logits row is split into
 // independent categoricals (hide-and-seek: 3 x 11 movement bins, 2 grab, 2 lock = 37 logits, 5 actions per
 // agent). Log-probabilities and entropies are summed over the heads. Sampling takes one caller-provided
 // uniform number in [0, 1) per head and inverts the CDF, so it is deterministic given the caller's random

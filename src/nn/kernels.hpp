@@ -11,11 +11,11 @@ namespace hns::nn {
 
 enum class Activation : uint8_t { kNone, kRelu };
 
-// Observation normalisation constants (SPEC.md §10.2).
+// Observation normalisation constants (docs/game.md §10.2).
 inline constexpr float kObsClip = 5.0f;
 // Layer norm epsilon (tf.contrib.layers.layer_norm).
 inline constexpr float kLayerNormEps = 1e-12f;
-// Masked softmax: logits of masked keys are lowered by this, and the sum gets this added (SPEC.md §10.2).
+// Masked softmax: logits of masked keys are lowered by this, and the sum gets this added (docs/game.md §10.2).
 inline constexpr float kMaskedLogitPenalty = 1e10f;
 inline constexpr float kSoftmaxSumEps = 1e-10f;
 // BasicLSTMCell forget bias.
@@ -46,7 +46,7 @@ void normalize_obs_scalar(const float* x, const float* mean, const float* inv_st
 void bias_act(float* y, const float* bias, Activation act, int n);
 void bias_act_scalar(float* y, const float* bias, Activation act, int n);
 
-// Masked softmax of one row of n logits (SPEC.md §10.2): l = logits * scale - (1 - mask) * 1e10;
+// Masked softmax of one row of n logits (docs/game.md §10.2): l = logits * scale - (1 - mask) * 1e10;
 // l -= max(l); e = exp(l) * mask; p = e / (sum(e) + 1e-10) * mask. mask values are 0 or 1. p may alias
 // logits.
 void masked_softmax(const float* logits, const float* mask, float scale, int n, float* p);

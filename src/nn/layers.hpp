@@ -1,5 +1,5 @@
 // Layers with forward and backward passes over batches of rows ([rows, features]) and of entity sets
-// ([rows, entities, features], stored as [rows * entities, features]). SPEC.md §10.2 gives the semantics.
+// ([rows, entities, features], stored as [rows * entities, features]). docs/game.md §10.2 gives the semantics.
 //
 // Conventions shared by every layer:
 // - A layer keeps only sizes and offsets into the flat parameter buffer (nn/params.hpp). forward() takes the
@@ -132,7 +132,7 @@ struct EntitySlots {
   float* at(int r, int e) const { return data + (static_cast<ptrdiff_t>(r) * entities + first + e) * width; }
 };
 
-// Embedding of one entity type with x_self concatenated to every entity (SPEC.md §10.2 concat with
+// Embedding of one entity type with x_self concatenated to every entity (docs/game.md §10.2 concat with
 // broadcast): X[r, e] = relu([main[r], ent[r, e]] W + b), W [main_width + features, width] (Xavier), b
 // [width]. Computed as main W_main (once per row) + ent W_ent (per entity), which equals the concatenated
 // product.
@@ -164,7 +164,7 @@ class EntityEmbedding {
   int ent_id_ = 0;
 };
 
-// Masked residual multi-head self-attention block (SPEC.md §10.2 residual_sa_block, n_mlp = 1):
+// Masked residual multi-head self-attention block (docs/game.md §10.2 residual_sa_block, n_mlp = 1):
 //   xn = LN_pre(x) (optional); qk = xn Wqk + bqk (stored interleaved, as the original: q = [..., 0],
 //   k = [..., 1] of [E, heads, dh, 2]); v = xn Wv + bv; p = masked_softmax(q k^T / sqrt(dh)) over keys;
 //   att = concat_h(p v); res = x + att Wo + bo; out = LN_post(res) (optional).
@@ -249,7 +249,7 @@ class SelfAttention {
   LayerNorm ln_post_;
 };
 
-// Masked average pooling over entities (SPEC.md §10.2 entity_pooling):
+// Masked average pooling over entities (docs/game.md §10.2 entity_pooling):
 // out[r] = sum_e x[r, e] * mask[r, e] / (sum_e mask[r, e] + 1e-5). x [rows * E, width]; out [rows, width].
 // Entities with mask 0 are skipped entirely (their features never enter the result).
 inline constexpr float kPoolEps = 1e-5f;
@@ -257,7 +257,7 @@ void masked_mean_pool(CMat x, const float* mask, int entities, Mat out);
 // dx[r, e] = mask[r, e] / (sum mask + 1e-5) * dout[r] (written, zero for masked entities).
 void masked_mean_pool_backward(CMat dout, const float* mask, int entities, Mat dx);
 
-// BasicLSTMCell (SPEC.md §10.2) over sequences: rows are ordered sequence-major, row = b * steps + t, for
+// BasicLSTMCell (docs/game.md §10.2) over sequences: rows are ordered sequence-major, row = b * steps + t, for
 // `sequences` sequences of `steps` steps. W [in + units, 4 units] (Xavier; rows [0, in) multiply x, the rest
 // h), b [4 units] (zeros); gate order i, j, f, o; forget bias 1. The state (c, h) is carried across steps,
 // zeroed before any step whose reset flag is set, and backprop runs through the whole chunk of steps. State

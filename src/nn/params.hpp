@@ -11,7 +11,7 @@
 
 namespace hns::nn {
 
-// How a slice is initialised (SPEC.md §10.2).
+// How a slice is initialised (docs/game.md §10.2).
 enum class Init : uint8_t {
   kZeros,
   kOnes,

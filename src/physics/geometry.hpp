@@ -1,5 +1,5 @@
 // Scalar geometry of the game world: ray casts against walls, boxes, ramps and agents, the vision cone,
-// line of sight, lidar and point-to-cuboid distance (SPEC.md §3.3, §4.1, §4.2, §14.6, §14.7).
+// line of sight, lidar and point-to-cuboid distance (docs/game.md §3.3, §4.1, §4.2, §14.6, §14.7).
 // These are the reference implementations; the batch layer's SIMD kernels are tested against them.
 #pragma once
 
@@ -12,14 +12,14 @@ inline constexpr double kVisionHalfAngle = 3.0 * 3.14159265358979323846 / 8.0;  
 inline constexpr int kLidarRays = 30;       // world-fixed, angle 2πk/30 from +x
 inline constexpr double kLidarRange = 6.0;  // m; no hit or a farther hit reads 6 (§14.6)
 inline constexpr double kRampHalf = 0.25;   // m, half extent of the ramp's bounding box
-// The ramp's volume centroid in its bounding-box frame (SPEC §1.2): the ODE body origin and the point lines
+// The ramp's volume centroid in its bounding-box frame (docs/game.md §1.2): the ODE body origin and the point lines
 // of sight aim at. It lies inside the solid, (1/6)/√2 ≈ 0.118 m from the slope, its nearest face.
 inline constexpr double kRampCentroidY = -1.0 / 12.0;  // m
 inline constexpr double kRampCentroidZ = -1.0 / 12.0;  // m
 // Half extents of the ramp's grab and lock reach cuboid about its bounding-box centre, along the ramp's body
-// axes (SPEC §3.3: the original's mesh geom_size).
+// axes (docs/game.md §3.3: the original's mesh geom_size).
 inline constexpr double kRampReachHalf[3] = {0.2357, 0.25, 0.3536};  // m
-// An agent's two massless arm spheres on its front (-y) side, body frame (SPEC §1.2). They collide, occlude
+// An agent's two massless arm spheres on its front (-y) side, body frame (docs/game.md §1.2). They collide, occlude
 // and are hit by lidar as part of the agent.
 inline constexpr double kArmRadius = 0.05;                                                   // m
 inline constexpr double kArmOffset[2][3] = {{-0.13, -0.075, -0.05}, {0.13, -0.075, -0.05}};  // m
@@ -110,7 +110,7 @@ double ray_cylinder(const double origin[3], const double dir[3], const Cylinder&
 RayHit cast_ray(const Occluders& occ, const double origin[3], const double dir[3], double max_t,
                 int skip_agent);
 
-// Facing direction in the plane for a yaw angle: agents face -y at yaw 0 (SPEC §1.2, §4.1).
+// Facing direction in the plane for a yaw angle: agents face -y at yaw 0 (docs/game.md §1.2, §4.1).
 inline void facing_direction(double yaw_c, double yaw_s, double out[2]) {
   out[0] = yaw_s;
   out[1] = -yaw_c;
@@ -130,7 +130,7 @@ void sight_point(const Occluders& occ, HitKind kind, int index, double out[3]);
 // so the target is always entered well before its end and the answer never hangs on the segment's length.
 bool line_of_sight(const Occluders& occ, int viewer, HitKind target_kind, int target_index);
 
-// Visible = in the cone and in line of sight (SPEC §4.1, true centres per §14.7).
+// Visible = in the cone and in line of sight (docs/game.md §4.1, true centres per §14.7).
 bool visible(const Occluders& occ, int viewer, double yaw_c, double yaw_s, HitKind target_kind,
              int target_index);
 

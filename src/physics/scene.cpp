@@ -1,4 +1,4 @@
-// Scene generation (SPEC.md §1.3, §2.3-§2.6, §14.5).
+// Scene generation (docs/game.md §1.3, §2.3-§2.6, §14.5).
 //
 // One attempt: draw the counts -> build the walls and doors on the 30 x 30 grid (quadrant, random rooms or
 // the bare arena) -> mark the wall cells -> turn the wall pieces into physical boxes -> rejection-place
@@ -65,7 +65,7 @@ class Grid {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-// Walls → physical boxes (SPEC §1.3): from the centre of p1 to the centre of p2, shortened by half the wall
+// Walls → physical boxes (docs/game.md §1.3): from the centre of p1 to the centre of p2, shortened by half the wall
 // thickness at each end, centred on the cell-centre line. (Pieces of one cell, which would have no physical
 // length, are never made.)
 void add_wall_box(const WallCells& w, std::vector<StaticBox>& boxes) {
@@ -109,7 +109,7 @@ void split_for_door(const WallCells& w, int offset, int door, std::vector<WallCe
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Random rooms (SPEC §2.4).
+// Random rooms (docs/game.md §2.4).
 struct Point {
   int x, y;
 };
@@ -275,7 +275,7 @@ class RoomBuilder {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-// var_tri (SPEC §9.2): a full-length wall at cell s1 = int(30 U(0.4, 0.6)), vertical or horizontal with p =
+// var_tri (docs/game.md §9.2): a full-length wall at cell s1 = int(30 U(0.4, 0.6)), vertical or horizontal with p =
 // 0.5, and a perpendicular wall at cell s2 = int(30 U(0.4, 0.6)) from it to the outer wall on its low or high
 // side with p = 0.5. No doors: three closed rooms, about a quarter, a quarter and a half of the arena.
 // Appends the two walls and the rooms' free cells (the two quarter rooms first, then the half).
@@ -304,7 +304,7 @@ void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Placement functions (SPEC §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
+// Placement functions (docs/game.md §2.5). Bounds are numpy-style: uniform_int(lo, hi) draws lo … hi - 1.
 enum class Placement : uint8_t {
   kUniform,
   kQuadrant,
@@ -315,7 +315,7 @@ enum class Placement : uint8_t {
   kSpawnQuarter
 };
 constexpr double kMiddleFraction = 0.7;       // shelter's cylinder: uniform_placement_middle(0.7)
-constexpr double kSiteMiddleFraction = 0.85;  // blueprint's sites: uniform_away_from_walls (SPEC §9.1)
+constexpr double kSiteMiddleFraction = 0.85;  // blueprint's sites: uniform_away_from_walls (docs/game.md §9.1)
 
 struct Cell {
   int i = 0, j = 0;
@@ -323,9 +323,9 @@ struct Cell {
 
 Cell propose_cell(Placement p, int cx, int cy, Cell anchor, int radius_cells, const CellRect& room,
                   double middle, Rng& rng) {
-  constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of SPEC §2.5
+  constexpr int kG = kGridSize, kQ = kQuadrantSize;  // G and q of docs/game.md §2.5
   switch (p) {
-    case Placement::kMiddle: {  // uniform_placement_middle(f), f = middle (SPEC §2.5)
+    case Placement::kMiddle: {  // uniform_placement_middle(f), f = middle (docs/game.md §2.5)
       auto range = [middle](int c) {
         const double f = middle;
         const int lo = static_cast<int>((kG - c) * (1 - f) / 2 + f),
@@ -379,7 +379,7 @@ struct Request {
   double middle = kMiddleFraction;  // kMiddle: the fraction f
 };
 
-// A food item's request (SPEC §5.4): 1 cell, in the quadrant room, the middle fraction, or anywhere.
+// A food item's request (docs/game.md §5.4): 1 cell, in the quadrant room, the middle fraction, or anywhere.
 Request food_request(const SceneConfig& config) {
   Request req;
   req.placement = config.layout == Layout::kQuadrant ? Placement::kQuadrant
@@ -450,7 +450,7 @@ int draw(const IntRange& r, Rng& rng) {
 
 // One attempt at a full scene; false (with `fail` filled) if anything could not be built or placed.
 bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Failure& fail) {
-  // Counts (SPEC §2.6). With fewer boxes than elongated.min, every box is elongated.
+  // Counts (docs/game.md §2.6). With fewer boxes than elongated.min, every box is elongated.
   n.hiders = draw(config.hiders, rng);
   n.seekers = draw(config.seekers, rng);
   n.boxes = draw(config.boxes, rng);
@@ -486,7 +486,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
       break;
     case Layout::kQuadrant: {
-      // SPEC §2.3: a vertical and a horizontal room wall; with p_door_dropout one of them has no door.
+      // docs/game.md §2.3: a vertical and a horizontal room wall; with p_door_dropout one of them has no door.
       out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
       const std::array<WallCells, 2> room = {{
           {kQuadrantSize, 0, kQuadrantSize, kQuadrantSize, false},
@@ -527,7 +527,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       break;
   }
 
-  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (SPEC §2.4,
+  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (docs/game.md §2.4,
   // add_walls_to_grid after the drop).
   if (!out.outer_walls) {
     out.walls.erase(
@@ -590,7 +590,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     out.sites.push_back(spawn);
   }
 
-  // Agents (SPEC §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
+  // Agents (docs/game.md §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
   for (int a = 0; a < n.hiders + n.seekers; ++a) {
     const bool hider = a < n.hiders;
     const int in_team = hider ? a : a - n.hiders;
@@ -615,7 +615,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     out.agents.push_back(spawn);
   }
 
-  // Boxes (SPEC §2.6): x-elongated, y-elongated, then cubes; inside the room in the quadrant game.
+  // Boxes (docs/game.md §2.6): x-elongated, y-elongated, then cubes; inside the room in the quadrant game.
   for (int b = 0; b < n.boxes; ++b) {
     Request req;
     req.placement = config.spawn_quarter ? Placement::kSpawnQuarter
@@ -656,7 +656,7 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     out.ramps.push_back(spawn);
   }
 
-  // Food (SPEC §5.4), after the ramps; the items after the first near it with food_together_radius.
+  // Food (docs/game.md §5.4), after the ramps; the items after the first near it with food_together_radius.
   Cell first_food;
   const int food_cells =
       std::min(kGridSize, static_cast<int>(std::ceil(config.food_together_radius / kCellSize - 1e-9)));
@@ -727,7 +727,7 @@ const char* layout_name(Layout layout) {
   return "unknown";
 }
 
-// hide_and_seek_quadrant.jsonnet (SPEC §2.1): 2 v 2, 2 cubes, 1 ramp, a room with one or two doors.
+// hide_and_seek_quadrant.jsonnet (docs/game.md §2.1): 2 v 2, 2 cubes, 1 ramp, a room with one or two doors.
 SceneConfig SceneConfig::quadrant() {
   SceneConfig c;
   c.layout = Layout::kQuadrant;
@@ -742,7 +742,7 @@ SceneConfig SceneConfig::quadrant() {
   return c;
 }
 
-// The paper's full game (SPEC §14.5): 1-3 v 1-3, 3-9 boxes of which at least 3 elongated, 2 ramps, 1-4 random
+// The paper's full game (docs/game.md §14.5): 1-3 v 1-3, 3-9 boxes of which at least 3 elongated, 2 ramps, 1-4 random
 // rooms, outer walls kept half of the time, team mates spawn within 0.5 m (3 cells) of their first member.
 SceneConfig SceneConfig::full() {
   SceneConfig c;

@@ -1,4 +1,4 @@
-// Scene generation on the 30 x 30 placement grid (SPEC.md §1.3, §2.3-§2.6, §14.5). Pure grid logic, no ODE:
+// Scene generation on the 30 x 30 placement grid (docs/game.md §1.3, §2.3-§2.6, §14.5). Pure grid logic, no ODE:
 // walls (in cells and as physical boxes), doors, and the spawn positions and sizes of agents, boxes and
 // ramps.
 #pragma once
@@ -13,7 +13,7 @@
 
 namespace hns::physics {
 
-// Grid and arena constants (SPEC.md §1.1, §1.3).
+// Grid and arena constants (docs/game.md §1.1, §1.3).
 inline constexpr int kGridSize = 30;                // cells per side
 inline constexpr double kCellSize = 0.2;            // m
 inline constexpr double kFloorSize = 6.0;           // m, arena covers [0, 6]^2
@@ -27,11 +27,11 @@ inline constexpr double kElongatedShort = 0.15;     // m
 inline constexpr double kRampSize = 0.5;            // m, footprint edge and height
 inline constexpr double kTargetHeight = 0.5;        // m, the shelter task's cylinder
 inline constexpr double kSiteSize = 0.5;            // m, a blueprint construction site's square (a cube's)
-inline constexpr double kFoodSize = 0.1;            // m, a food item's extent (SPEC §5.4: 1 x 1 cell)
+inline constexpr double kFoodSize = 0.1;            // m, a food item's extent (docs/game.md §5.4: 1 x 1 cell)
 // Quadrant: q_size = int(0.5 * grid size), the room walls' row and column.
 inline constexpr int kQuadrantSize = 15;
 
-// Wall layout of a scene. kVarTri: three door-less rooms (SPEC §9.2 'var_tri', the sequential-lock task).
+// Wall layout of a scene. kVarTri: three door-less rooms (docs/game.md §9.2 'var_tri', the sequential-lock task).
 // kCounting: the object-counting task's fixed stage (docs/transfer.md "Object counting"): two screens, the
 // agent and the boxes at fixed spots, each box's side drawn per episode.
 enum class Layout : uint8_t { kEmpty, kQuadrant, kRandomWalls, kVarTri, kCounting };
@@ -80,22 +80,22 @@ struct SceneConfig {
   // when set, every agent, box and ramp spawns in the quarter x, y in [0.2, 3.0] m (grid cells 1 .. 14),
   // whatever the layout's own rule (rooms, teams, together_radius). Sites, food and the cylinder keep theirs.
   bool spawn_quarter = false;
-  // Shelter construction (SPEC §9.3): a static cylinder of this diameter range (m; 0 = no cylinder), placed
+  // Shelter construction (docs/game.md §9.3): a static cylinder of this diameter range (m; 0 = no cylinder), placed
   // in the middle 70 % of the grid before the agents, seen by lidar and vision rays, not observed.
   double target_diameter_min = 0.0;
   double target_diameter_max = 0.0;
-  // Blueprint construction (SPEC §9.1): construction sites, squares of kSiteSize placed by
+  // Blueprint construction (docs/game.md §9.1): construction sites, squares of kSiteSize placed by
   // uniform_placement_middle(0.85) (3 x 3 cells) before anything else, so nothing spawns on one. Not
   // physical: nothing collides with a site, and rays pass through it.
   IntRange sites{0, 0};
-  // Food (SPEC §5.4): items of kFoodSize placed after the ramps, 1 cell each; not physical. In the quadrant
+  // Food (docs/game.md §5.4): items of kFoodSize placed after the ramps, 1 cell each; not physical. In the quadrant
   // layout inside the room (quadrant_placement), else with food_middle > 0 by
   // uniform_placement_middle(food_middle) (the paper's centred square), else uniformly; with
   // food_together_radius > 0 the items after the first within ceil(r / 0.2) cells of it.
   IntRange food{0, 0};
   double food_middle = 0.0;
   double food_together_radius = 0.0;  // m
-  int max_tries_per_object = 10;      // rejection placement tries per object (SPEC §2.5)
+  int max_tries_per_object = 10;      // rejection placement tries per object (docs/game.md §2.5)
   int max_regenerations = 1000;       // whole-scene rebuilds before giving up with an error
 
   static SceneConfig quadrant();
@@ -142,13 +142,13 @@ struct Scene {
   Layout layout = Layout::kEmpty;
   bool outer_walls = true;
   std::vector<WallCells> walls;       // pieces after door splitting, >= 2 cells; no dropped outer walls
-  std::vector<StaticBox> wall_boxes;  // the same walls as physical boxes (SPEC §1.3)
+  std::vector<StaticBox> wall_boxes;  // the same walls as physical boxes (docs/game.md §1.3)
   std::vector<DoorCells> doors;
   std::vector<CellRect> rooms;  // var_tri: the two small rooms, then the large one (empty otherwise)
   int num_hiders = 0;
   int num_seekers = 0;
   std::vector<Spawn> agents;  // hiders first, then seekers
-  std::vector<Spawn> boxes;   // x-elongated first, then y-elongated, then cubes (SPEC §2.6)
+  std::vector<Spawn> boxes;   // x-elongated first, then y-elongated, then cubes (docs/game.md §2.6)
   int num_elongated = 0;
   std::vector<Spawn> ramps;
   bool has_target = false;  // shelter: the cylinder, centre and full extents (sx = sy = diameter)

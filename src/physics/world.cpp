@@ -16,7 +16,7 @@ namespace {
 
 constexpr int kMaxContactsPerPair = 8;
 
-// Body constants (SPEC.md §1.2). Rotation about x and y is removed by a huge inertia on those axes plus a
+// Body constants (docs/game.md §1.2). Rotation about x and y is removed by a huge inertia on those axes plus a
 // projection back to pure yaw after every substep, which together act like the original's missing hinges.
 constexpr double kBodyMass = 1.0;                       // kg, agents, boxes and ramps alike
 constexpr double kLockedTiltInertia = 1e4;              // kg·m², x/y inertia of every movable body
@@ -152,7 +152,7 @@ int collide_sphere_ramp(dGeomID g1, dGeomID g2, dContactGeom* contact) {
 }
 
 // Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
-// max(μ1, μ2) (SPEC §1.2; ODE's friction pyramid scaled by the normal force, turned along the slip below).
+// max(μ1, μ2) (docs/game.md §1.2; ODE's friction pyramid scaled by the normal force, turned along the slip below).
 void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b2) {
   dContact contact[kMaxContactsPerPair];
   const int c1 = dGeomGetClass(g1), c2 = dGeomGetClass(g2);
@@ -301,7 +301,7 @@ WorldConfig WorldConfig::lockbox() {
 }
 
 namespace {
-// SPEC §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy (one
+// docs/game.md §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy (one
 // other agent, one ramp at least), grab and lock as in the game, no preparation phase.
 WorldConfig transfer_task(WorldConfig::Task task, int horizon) {
   WorldConfig c = WorldConfig::lockbox();
@@ -337,7 +337,7 @@ WorldConfig WorldConfig::shelter() {
   c.scene.elongated = {3, 3};
   c.scene.target_diameter_min = 1.5;
   c.scene.target_diameter_max = 2.0;
-  c.obs_hider = 0;  // SPEC §9.3's constant observation
+  c.obs_hider = 0;  // docs/game.md §9.3's constant observation
   return c;
 }
 
@@ -345,7 +345,7 @@ WorldConfig WorldConfig::blueprint() {
   WorldConfig c = transfer_task(Task::kBlueprint, 150);
   c.scene.boxes = {8, 8};
   c.scene.sites = {1, 4};
-  c.obs_hider = 0;  // SPEC §9.1's constant observation
+  c.obs_hider = 0;  // docs/game.md §9.1's constant observation
   return c;
 }
 
@@ -362,7 +362,7 @@ WorldConfig WorldConfig::food_game() {
   c.scene.food = {5, 5};
   c.scene.food_middle = 0.25;
   c.scene.food_together_radius = 0.25;
-  return c;  // FoodConfig's defaults are the full game's values (SPEC §5.4)
+  return c;  // FoodConfig's defaults are the full game's values (docs/game.md §5.4)
 }
 
 WorldConfig WorldConfig::dynamic_food_game() {
@@ -465,7 +465,7 @@ World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
   Ode& o = *ode_;
   o.world = dWorldCreate();
   // Each world gets its own self-threaded implementation: with Debian's ODE (no TLS), worlds sharing the
-  // default one abort when stepped from two threads at once (DESIGN.md "Threading and ODE").
+  // default one abort when stepped from two threads at once (docs/design.md "Threading and ODE").
   o.threading = dThreadingAllocateSelfThreadedImplementation();
   dWorldSetStepThreadingImplementation(o.world, dThreadingImplementationGetFunctions(o.threading),
                                        o.threading);
@@ -505,7 +505,7 @@ World::World(const WorldConfig& config, uint64_t seed, uint64_t world_index)
     return body;
   };
   // Agents: the proxy in the space, then its parts outside it: the body sphere and the two massless arms
-  // (SPEC §1.2).
+  // (docs/game.md §1.2).
   o.agent_proxy_info.assign(max_agents, GeomInfo{kAgentFriction});
   for (int i = 0; i < max_agents; ++i) {
     dGeomID proxy = dCreateSphere(o.dynamic_space, kAgentReach);
@@ -690,7 +690,7 @@ void World::step(std::span<const AgentAction> actions) {
   }
   ensure_ode_thread();
   ScopedSolverRng solver_rng(rng_);
-  // Seekers are powerless during the preparation phase (SPEC §3.5): their action is the zero action.
+  // Seekers are powerless during the preparation phase (docs/game.md §3.5): their action is the zero action.
   const bool prep = t_ < prep_steps_;
   AgentAction effective_storage[64];
   std::vector<AgentAction> effective_heap;
@@ -822,7 +822,7 @@ void World::release(int agent) {
   holding_[agent] = -1;
 }
 
-// Grab (SPEC §3.3, §14.2): each agent pressing grab holds the closest object that it saw in the last
+// Grab (docs/game.md §3.3, §14.2): each agent pressing grab holds the closest object that it saw in the last
 // observation and that lies within the grab radius (plus a slack for the object it already holds). The
 // object keeps its pose relative to the agent through an ODE fixed joint.
 void World::apply_grab(std::span<const AgentAction> actions) {
@@ -855,7 +855,7 @@ void World::apply_grab(std::span<const AgentAction> actions) {
   }
 }
 
-// Lock (SPEC §3.4 'all_lock_team_specific', §14.3): an object in range and in view of an agent pressing
+// Lock (docs/game.md §3.4 'all_lock_team_specific', §14.3): an object in range and in view of an agent pressing
 // lock gets pinned, unless a member of the team that locked it last stands in range, sees it and does not
 // press lock: that unlocks it. A never-locked object has no owner, so nobody vetoes its first lock.
 void World::apply_lock(std::span<const AgentAction> actions) {

@@ -1,4 +1,4 @@
-// One hide-and-seek world on ODE (SPEC.md §1-§3, §14): bodies, walls, movement, grab, lock, the
+// One hide-and-seek world on ODE (docs/game.md §1-§3, §14): bodies, walls, movement, grab, lock, the
 // preparation phase and substepping. Rewards, observations and statistics live in the batch layer.
 //
 // Per env step (World::step):
@@ -20,9 +20,9 @@
 
 namespace hns::physics {
 
-// Solver and integration settings. The defaults reproduce the motion profile of SPEC §14.4.
+// Solver and integration settings. The defaults reproduce the motion profile of docs/game.md §14.4.
 struct PhysicsConfig {
-  double step_time = 0.075;              // s of simulated time per env step (SPEC §1.1)
+  double step_time = 0.075;              // s of simulated time per env step (docs/game.md §1.1)
   int substeps = 10;                     // ODE steps per env step (7.5 ms each: 6 cm at top speed)
   int solver_iterations = 10;            // QuickStep iterations per substep
   double gravity = -50.0;                // m/s² along z
@@ -43,14 +43,14 @@ struct PhysicsConfig {
   int sleep_substeps = 5;
 };
 
-// The food variants' eating rules (SPEC §5.4; the scene's food count, placement and clustering are in
+// The food variants' eating rules (docs/game.md §5.4; the scene's food count, placement and clustering are in
 // SceneConfig). Applied by the batch layer after each step: a hider eats 1 unit per step of every item with
 // health left within eat_radius (3-D, from its centre) that it saw in the previous observation while no
 // hider was seen, outside the preparation phase (seekers never eat); if the hiders at one item would eat
 // more than it has, they share what is left. An item eaten up stays empty for respawn_steps steps, then its
 // health resets (and, with relocate, it moves to a new spot of its placement region: dynamic food).
 struct FoodConfig {
-  double eat_radius = 0.5;    // m (SPEC food_radius)
+  double eat_radius = 0.5;    // m (the original's food_radius)
   double max_health = 40.0;   // units per item
   int respawn_steps = 5;      // 0 = an eaten-up item never comes back
   bool relocate = false;      // dynamic food
@@ -66,20 +66,20 @@ struct WorldConfig {
   int horizon = 80;                  // env steps per episode
   double prep_fraction = 0.4;        // first ceil(prep_fraction * horizon) steps are preparation
   bool lock_ramps = false;           // ramps lockable (full game) or not (quadrant)
-  double grab_radius = 0.25;         // m, agent centre to object cuboid (SPEC §3.3)
+  double grab_radius = 0.25;         // m, agent centre to object cuboid (docs/game.md §3.3)
   double grab_release_slack = 0.05;  // m, a held object is released beyond grab_radius + slack (§14.2)
-  double lock_radius = 0.25;         // m (SPEC §3.4)
+  double lock_radius = 0.25;         // m (docs/game.md §3.4)
   bool compute_visibility = true;    // fill the agent-object visibility after reset and each step
-  // Game rules applied by the batch layer (SPEC §5.2): an agent whose centre leaves this rectangle
+  // Game rules applied by the batch layer (docs/game.md §5.2): an agent whose centre leaves this rectangle
   // [x_min, y_min, x_max, y_max] (m) gets -10 that step; with penalize_objects_out, a box or ramp outside it
   // costs every agent -10.
   double restrict_rect[4] = {0.1, 0.1, 5.9, 5.9};
   bool penalize_objects_out = true;
-  // The reward the batch layer computes: the hide-and-seek game (SPEC §5) or one of the box-locking tasks of
-  // SPEC §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
+  // The reward the batch layer computes: the hide-and-seek game (docs/game.md §5) or one of the box-locking tasks of
+  // docs/game.md §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
   // kLockReturn ('all-return': then back to the spawn) and kSequentialLock ('order': boxes in index order,
-  // locks of boxes after the first unlocked one refused); or shelter construction (SPEC §9.3: -0.001 per
-  // ray from the arena's edges that reaches the scene's cylinder); or blueprint construction (SPEC §9.1:
+  // locks of boxes after the first unlocked one refused); or shelter construction (docs/game.md §9.3: -0.001 per
+  // ray from the arena's edges that reaches the scene's cylinder); or blueprint construction (docs/game.md §9.1:
   // a dense smooth-min reward pulling box corners onto the sites' corners, +3 per site on completion, after
   // which the episode is absorbed: every later step's reward is 0 and batch::BatchState::task_complete is 1).
   // kCounting: object counting (the paper's §6), a supervised probe: the agent is pinned, its actions are
@@ -100,10 +100,10 @@ struct WorldConfig {
   double success_reward = 1.0;       // every step the task is complete
   double return_threshold = 0.1;     // kLockReturn: m (2-D) from the spawn that counts as returned
   // Observation slots at least this many (0 = the scene's maxima): a transfer task's lone agent sees a
-  // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (SPEC §9 spoofed obs).
+  // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (docs/game.md §9 spoofed obs).
   int obs_min_agents = 0;
   int obs_min_ramps = 0;
-  // The "hider" self feature: -1 = the agent's team (1 for hiders); 0 or 1 = that constant (SPEC §9:
+  // The "hider" self feature: -1 = the agent's team (1 for hiders); 0 or 1 = that constant (docs/game.md §9:
   // blueprint and shelter pass 0).
   int obs_hider = -1;
   // The food variants (the scene's food items; without any, nothing here applies).
@@ -111,7 +111,7 @@ struct WorldConfig {
   bool is_lock_task() const {
     return task == Task::kLockBox || task == Task::kLockReturn || task == Task::kSequentialLock;
   }
-  // A single-agent task of SPEC §9 (agent 0 does it; every agent slot gets its reward).
+  // A single-agent task of docs/game.md §9 (agent 0 does it; every agent slot gets its reward).
   bool is_transfer_task() const { return task != Task::kHideAndSeek; }
   // kSequentialLock: box locks are refused for boxes after the first unlocked one.
   bool lock_in_order() const { return task == Task::kSequentialLock; }
@@ -121,14 +121,14 @@ struct WorldConfig {
   static WorldConfig empty();
   // One hider and one cube in the empty room, task kLockBox, horizon 60, no preparation phase.
   static WorldConfig lockbox();
-  // The transfer tasks of SPEC §9.2: lock the box in one of 6 random rooms and return to the spawn (horizon
+  // The transfer tasks of docs/game.md §9.2: lock the box in one of 6 random rooms and return to the spawn (horizon
   // 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room (horizon 120).
   static WorldConfig lock_and_return();
   static WorldConfig sequential_lock();
-  // SPEC §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2] m,
+  // docs/game.md §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2] m,
   // horizon 240.
   static WorldConfig shelter();
-  // SPEC §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
+  // docs/game.md §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
   static WorldConfig blueprint();
   // The paper's object counting (§6; docs/transfer.md): the fixed counting stage, 6 cubes, horizon 80.
   static WorldConfig object_counting();
@@ -149,7 +149,7 @@ struct WorldConfig {
 enum class Team : uint8_t { kHider = 0, kSeeker = 1 };
 
 // One agent's action: movement bins 0..10 (5 = zero) for force x, force y (world frame) and torque z;
-// grab and lock bits (SPEC §3).
+// grab and lock bits (docs/game.md §3).
 struct AgentAction {
   uint8_t move_x = 5;
   uint8_t move_y = 5;
@@ -178,7 +178,7 @@ inline double bin_control(int bin) {
   return -kMaxControl + 2.0 * kMaxControl * bin / (kMoveBins - 1);
 }
 
-// Pose and velocity of one body, true centre (SPEC §14.1).
+// Pose and velocity of one body, true centre (docs/game.md §14.1).
 struct BodyState {
   double pos[3];   // m
   double cos_yaw;  // yaw as (cos, sin), read from the body's quaternion without trigonometry

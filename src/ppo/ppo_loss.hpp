@@ -1,4 +1,4 @@
-// The trainer's minibatch loss, chunk by chunk (SPEC.md §10.4, paper appendix B): the clipped surrogate on
+// The trainer's minibatch loss, chunk by chunk (docs/game.md §10.4, paper appendix B): the clipped surrogate on
 // the summed log-probability of the five action heads, plus value_coef times the value loss (normalised
 // targets), minus entropy_coef times the entropy, each a mean over the minibatch's real agent-steps. It is an
 // nn::LossFn body: ActorCritic::forward_backward calls it once per chunk, and it writes the gradient of the

@@ -42,7 +42,7 @@ PolicyLossStats ppo_policy_loss(std::span<const float> new_logp, std::span<const
                                 std::span<const float> advantages, std::span<const uint8_t> mask,
                                 float clip_eps, std::span<float> grad_logp);
 
-// 0.5·mean((pred - target)²) over entries with mask 1, both in normalised units (SPEC §10.2). Writes
+// 0.5·mean((pred - target)²) over entries with mask 1, both in normalised units (docs/game.md §10.2). Writes
 // d loss / d pred into grad_pred.
 double value_loss(std::span<const float> pred, std::span<const float> target, std::span<const uint8_t> mask,
                   std::span<float> grad_pred);

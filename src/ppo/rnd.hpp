@@ -5,7 +5,7 @@
 // (nn::NetHead::kRnd). The prediction error of an observation, the mean over the 64 outputs of the squared
 // difference, is the intrinsic reward: observations like those already visited pay less.
 //
-// Determinism (DESIGN.md): the rows are cut into chunks of kRndChunkRows and the chunks into kRndGroups
+// Determinism (docs/design.md "Determinism"): the rows are cut into chunks of kRndChunkRows and the chunks into kRndGroups
 // contiguous groups, independently of the thread count. Each group sums its chunks' gradients in order and
 // the groups are summed in order, so errors and training steps are bit-identical for any thread count.
 #pragma once

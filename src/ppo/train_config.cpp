@@ -520,7 +520,7 @@ physics::WorldConfig TrainConfig::world() const {
   physics::apply_overrides(
       w, physics::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
   // Keep the entity types of the scene in the observation: a lone agent still has an (empty) other-agent
-  // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (SPEC §9).
+  // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (docs/game.md §9).
   if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
   if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
   if (spawn_quarter == 1) w.scene.spawn_quarter = true;

@@ -3,7 +3,7 @@
 //
 // Rollouts are aligned to episodes: every iteration runs `episodes_per_iteration` whole episodes in every
 // env, so an iteration starts with fresh episodes and zero LSTM states (what makes resume bit-identical
-// without saving the physics state). GAE windows are therefore whole rollouts (SPEC §14 note in
+// without saving the physics state). GAE windows are therefore whole rollouts (docs/game.md §14 note in
 // docs/training.md).
 #pragma once
 

@@ -1,4 +1,4 @@
-// The synchronous PPO self-play loop (paper appendix B, SPEC §10.4): every agent of every env acts from one
+// The synchronous PPO self-play loop (paper appendix B, docs/game.md §10.4): every agent of every env acts from one
 // shared policy; one iteration is
 //
 //   rollout   T = horizon x episodes_per_iteration steps of all envs: obs -> ActorCritic::act (sampled
@@ -43,7 +43,7 @@
 
 namespace hns::ppo {
 
-// Running mean and std of the value targets (SPEC §10.2): debiased EMA of the mean and of the square,
+// Running mean and std of the value targets (docs/game.md §10.2): debiased EMA of the mean and of the square,
 // one update per iteration, std = sqrt(max(E[x²] - mean², 1e-2)).
 struct ScalarNormalizer {
   double beta = 0.99999;
@@ -67,7 +67,7 @@ struct IterationMetrics {
   int episodes = 0;
   double hider_reward = 0, seeker_reward = 0;  // episode returns: summed mean reward per team
   double intrinsic_reward = 0;  // episode return of the intrinsic reward (config intrinsic; 0 without)
-  // The per-episode statistics of batch::EpisodeStats (SPEC §7 and the stage detectors), same names.
+  // The per-episode statistics of batch::EpisodeStats (docs/game.md §7 and the stage detectors), same names.
 #define HNS_DECLARE_EPISODE_MEAN(name, doc) double name = 0;
   HNS_EPISODE_STATS(HNS_DECLARE_EPISODE_MEAN)
 #undef HNS_DECLARE_EPISODE_MEAN

@@ -164,7 +164,7 @@ std::string episode_chunk(const TrajectoryEpisode& ep) {
   h["seeker_return"] = ep.seeker_return;
   h["lidar_rays"] = kTrajectoryLidarRays;
   h["lidar_unit"] = kLidarUnit;
-  // Informative constants for readers that draw the scene (SPEC.md §1.2).
+  // Informative constants for readers that draw the scene (docs/game.md §1.2).
   h["agent_radius"] = 0.15;
   h["ramp_size"] = 0.5;
 

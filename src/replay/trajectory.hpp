@@ -22,7 +22,7 @@ namespace hns::replay {
 // are still read).
 inline constexpr int kTrajectoryVersion = 3;
 // Bounds of the physically meaningful values a reader accepts (the simulator resets a world whose bodies
-// leave the first two, SPEC-wide).
+// leave the first two).
 inline constexpr double kTrajectoryMaxXY = 200.0;    // m, |x| and |y| of every body
 inline constexpr double kTrajectoryMaxZ = 100.0;     // m, |z|
 inline constexpr double kTrajectoryMaxYaw = 4.0;     // rad, |yaw| (recorded in [-π, π])

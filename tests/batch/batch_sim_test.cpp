@@ -227,7 +227,7 @@ TEST(BatchRewards, OutOfBoundsReplacesReward) {
   EXPECT_EQ(quadrant.state().reward[1], -10.0f);
 }
 
-// Joint zero-sum in 2 v 2 (SPEC §5.1): one seeker sees one hider, the other seeker sees nobody and the other
+// Joint zero-sum in 2 v 2 (docs/game.md §5.1): one seeker sees one hider, the other seeker sees nobody and the other
 // hider is unseen. Every hider gets -1 and every seeker +1; selfish rewards would give the unseen hider +1
 // and the blind seeker -1, team means 0 to everyone.
 TEST(BatchRewards, JointZeroSumInTwoVersusTwo) {
@@ -296,7 +296,7 @@ TEST(BatchObservations, LockFeaturesSizesAndRampRows) {
   EXPECT_EQ(st.mask_boxes[0], 1) << "hider 0 sees the box it locked";
 }
 
-// prep_obs (SPEC §4.3) = t / (prep + 1e-5): below 1 through the preparation phase, exactly 1 from step
+// prep_obs (docs/game.md §4.3) = t / (prep + 1e-5): below 1 through the preparation phase, exactly 1 from step
 // prep + 1; in every agent's own and other-agent rows.
 TEST(BatchObservations, PrepObservationReachesOneAfterStepPrepPlusOne) {
   BatchConfig config = test_config();
@@ -336,7 +336,7 @@ TEST(BatchObservations, PrepObservationReachesOneAfterStepPrepPlusOne) {
   }
 }
 
-// The SPEC §7 preparation statistics are taken when prep_obs first reads 1, after step prep + 1 (the last
+// The docs/game.md §7 preparation statistics are taken when prep_obs first reads 1, after step prep + 1 (the last
 // step whose actions were chosen while prep_obs was below 1): a box moved during that step counts, a box
 // moved during the next one does not (but counts at the episode's end).
 TEST(BatchEpisodes, PrepStatisticsTakenAfterStepPrepPlusOne) {
@@ -428,7 +428,7 @@ TEST(BatchEpisodes, PrepStatisticsSeeBoxMovedDuringPrep) {
   EXPECT_EQ(st.num_box_lock, 0.0f);
 }
 
-// Other agents appear in circulant order i-1, i-2, ... (SPEC §4.4); empty slots are zero with mask 0.
+// Other agents appear in circulant order i-1, i-2, ... (docs/game.md §4.4); empty slots are zero with mask 0.
 TEST(BatchObservations, CirculantOrderAndPaddingMasks) {
   BatchSim sim(test_config());
   sim.load_scene(0, scene_of({agent(1.0, 1.0), agent(2.0, 1.0)}, {agent(3.0, 1.0), agent(4.0, 1.0)}));

@@ -1,4 +1,4 @@
-// The food variants of hide-and-seek (SPEC §5.4) on staged scenes, one test per eating rule: a hider eats
+// The food variants of hide-and-seek (docs/game.md §5.4) on staged scenes, one test per eating rule: a hider eats
 // what it saw within reach; not out of reach, not what it did not see, never a seeker, not while a hider is
 // seen (unless eat_when_caught), not in the preparation phase; the last units are shared; an eaten-up item
 // comes back after respawn_steps (dynamic food: elsewhere in its square); selfish and joint_mean rewards; the

@@ -171,7 +171,7 @@ std::vector<DoorGap> stage_fort(BatchSim& sim, double ramp_x, double ramp_y) {
 }
 
 // Plays env 0 to the end of its episode; the agents in `lockers` hold lock down throughout (the lock team
-// unlocks a box it sees in range without pressing lock, SPEC §3.4).
+// unlocks a box it sees in range without pressing lock, docs/game.md §3.4).
 EpisodeStats play_episode(BatchSim& sim, std::vector<int> lockers) {
   std::vector<AgentAction> acts(size_t(sim.layout().max_agents));
   for (int h : lockers) acts[size_t(h)].lock = 1;

@@ -1,4 +1,4 @@
-// The transfer tasks of SPEC §9 on staged scenes: lock-and-return's lock, return and success reward;
+// The transfer tasks of docs/game.md §9 on staged scenes: lock-and-return's lock, return and success reward;
 // sequential-lock's order (a lock out of order is refused) and its target; shelter's rays, against a hand
 // count and the double-precision reference, and its cylinder in lidar and vision; the spoofed observation
 // slots that let a hide-and-seek policy act in them; blueprint's smooth-min reward, its completion bonus and
@@ -158,7 +158,7 @@ TEST(SequentialLock, UnlockingAnEarlierBoxSendsTheAgentBackAndCosts) {
   EXPECT_NEAR(s.reward[0], -5.0 - 0.5 * s.task_dist[0], 0.02);
 }
 
-// Shelter (SPEC §9.3): a cylinder of diameter 1.6 m in the middle of the arena.
+// Shelter (docs/game.md §9.3): a cylinder of diameter 1.6 m in the middle of the arena.
 Scene shelter_scene(Spawn agent, std::vector<Spawn> boxes, std::vector<physics::StaticBox> walls = {}) {
   Scene s = lone_agent_scene(agent, std::move(boxes));
   s.wall_boxes = std::move(walls);
@@ -255,7 +255,7 @@ TEST(EpisodeStatistics, MaxAgentMoveIsTheDistanceFromTheSpawn) {
   EXPECT_NEAR(sim.finished()[0].max_agent_move, 2.0, 0.02);
 }
 
-// Shelter's cylinder over the whole of SPEC's uniform_placement_middle(0.7) range: its centre reaches
+// Shelter's cylinder over the whole of the original's uniform_placement_middle(0.7) range: its centre reaches
 // beyond 3.9 m (the range is 1.4 to 4.25 m) and below 1.7 m, on both axes.
 TEST(Shelter, CylinderCentresSpanTheMiddleRange) {
   const physics::WorldConfig w = physics::world_preset("shelter");
@@ -304,7 +304,7 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     EXPECT_LE(scene.target.sx, 2.0);
     EXPECT_EQ(scene.boxes.size(), 8u);
     EXPECT_EQ(scene.num_elongated, 3);
-    // uniform_placement_middle(0.7) of SPEC §2.5: a footprint of c = 8, 9 or 10 cells starts at a cell in
+    // uniform_placement_middle(0.7) of docs/game.md §2.5: a footprint of c = 8, 9 or 10 cells starts at a cell in
     // [4, 17], [3, 16] or [3, 15]; the cylinder lies within its cells.
     const int c = int(std::ceil(scene.target.sx / physics::kCellSize - 1e-9));
     const int lo = c == 8 ? 4 : 3, hi = c == 8 ? 17 : c == 9 ? 16 : 15;
@@ -312,7 +312,7 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     EXPECT_LE(scene.target.x + 0.5 * scene.target.sx, (hi + c) * physics::kCellSize + 1e-9) << c;
     EXPECT_GE(scene.target.y - 0.5 * scene.target.sx, lo * physics::kCellSize - 1e-9) << c;
     EXPECT_LE(scene.target.y + 0.5 * scene.target.sx, (hi + c) * physics::kCellSize + 1e-9) << c;
-    // SPEC §9.3's constant observation: the agent's "hider" feature reads 0.
+    // docs/game.md §9.3's constant observation: the agent's "hider" feature reads 0.
     EXPECT_EQ(shelter.state().obs_self[size_t(e) * shelter.layout().max_agents * Layout::kSelfFeatures + 9],
               0.0f);
     // The boxes spawn anywhere and already block some rays, never all.
@@ -322,7 +322,7 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
 }
 
 // ---------------------------------------------------------------------------------------------------------
-// Blueprint construction (SPEC §9.1).
+// Blueprint construction (docs/game.md §9.1).
 
 Spawn site_at(double x, double y) {
   return Spawn{x, y, 0.5 * physics::kSiteSize, physics::kSiteSize, physics::kSiteSize, 0.0};
@@ -334,7 +334,7 @@ Scene blueprint_scene(std::vector<Spawn> sites, std::vector<Spawn> boxes) {
   return s;
 }
 
-// SPEC §9.1's smooth minimum of distances, sum d e^(-1.5 d) / sum e^(-1.5 d).
+// docs/game.md §9.1's smooth minimum of distances, sum d e^(-1.5 d) / sum e^(-1.5 d).
 double smooth_min(std::initializer_list<double> d) {
   double num = 0, den = 0;
   for (double x : d) num += x * std::exp(-1.5 * x), den += std::exp(-1.5 * x);
@@ -455,7 +455,7 @@ TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
       EXPECT_FLOAT_EQ(f[10], float(site.y) + 0.25f);
       EXPECT_EQ(st.mask_sites[slot + L.max_sites], 0) << "the spoofed agent slot sees nothing";
     }
-    EXPECT_EQ(st.obs_self[size_t(e) * L.max_agents * Layout::kSelfFeatures + 9], 0.0f);  // SPEC's hider 0
+    EXPECT_EQ(st.obs_self[size_t(e) * L.max_agents * Layout::kSelfFeatures + 9], 0.0f);  // docs/game.md §9: hider 0
     EXPECT_EQ(st.mask_ramps[size_t(e) * L.max_agents * L.max_ramps], 0);                 // spoofed ramp slot
   }
 }

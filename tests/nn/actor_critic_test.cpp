@@ -162,7 +162,7 @@ Result outputs_and_grads(ActorCritic& ac, const ObsNormView& view, const ObsBatc
 
 TEST(NnNetwork, PaperPresetHasAboutOnePointSixMillionParameters) {
   ActorCritic ac(net_preset("paper"));
-  // SPEC.md §10.3: about 1.63 M (policy about 818 k of which the LSTM is 525 k, value about 809 k); ours has
+  // docs/game.md §10.3: about 1.63 M (policy about 818 k of which the LSTM is 525 k, value about 809 k); ours has
   // 11 self and agent features (yaw as cos/sin) instead of 10.
   EXPECT_NEAR(static_cast<double>(ac.num_params()), 1.63e6, 0.02 * 1.63e6);
   EXPECT_EQ(ac.num_params(), 1627502u);

@@ -1,4 +1,4 @@
-// The scalar vision, line-of-sight and lidar reference on hand-built scenes (SPEC.md §4.1, §4.2, §14.6-7).
+// The scalar vision, line-of-sight and lidar reference on hand-built scenes (docs/game.md §4.1, §4.2, §14.6-7).
 #include "physics/geometry.hpp"
 #include "physics/sphere_convex.hpp"
 

@@ -1,4 +1,4 @@
-// Scene generation (SPEC.md §1.3, §2.3-§2.6, §14.5): determinism, spawn validity over many seeds, the
+// Scene generation (docs/game.md §1.3, §2.3-§2.6, §14.5): determinism, spawn validity over many seeds, the
 // quadrant room and its doors, random rooms, wall geometry, config validation.
 #include "physics/scene.hpp"
 
@@ -366,7 +366,7 @@ TEST(SceneGeneration, EveryPresetSpawnsValidScenes) {
   }
 }
 
-// The sequential-lock layout (SPEC §9.2 var_tri): two interior walls, no doors, three rooms whose free cells
+// The sequential-lock layout (docs/game.md §9.2 var_tri): two interior walls, no doors, three rooms whose free cells
 // are everything the walls leave, one ramp per room.
 TEST(SceneVarTri, ThreeClosedRoomsOneRampEach) {
   SceneConfig config = SceneConfig::empty();
@@ -431,7 +431,7 @@ TEST(SceneGeneration, EmptyLayoutHasOnlyTheOuterWalls) {
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Quadrant game (SPEC §2.3, §2.5).
+// Quadrant game (docs/game.md §2.3, §2.5).
 bool in_room(double x, double y) {
   return x > 3.1 && y < 3.1;
 }
@@ -612,9 +612,9 @@ TEST(SceneWalls, NoPieceOfASingleCell) {
 }
 
 // ---------------------------------------------------------------------------------------------------------------
-// Full game (SPEC §2.4, §2.6, §14.5).
+// Full game (docs/game.md §2.4, §2.6, §14.5).
 
-// Dropped outer walls leave their cells free (SPEC §2.4: the grid is marked after the drop): team mates
+// Dropped outer walls leave their cells free (docs/game.md §2.4: the grid is marked after the drop): team mates
 // placed near their first member may then stand on the arena's last cell row or column; with the outer
 // walls kept they never do.
 TEST(SceneFull, DroppedOuterWallsFreeTheirCells) {

@@ -1,4 +1,4 @@
-// Behaviour of one world that players of the game rely on (SPEC.md §1-§3, §14).
+// Behaviour of one world that players of the game rely on (docs/game.md §1-§3, §14).
 #include "physics/world.hpp"
 
 #include <gtest/gtest.h>
@@ -24,7 +24,7 @@ using testing::wall_at;
 
 constexpr AgentAction kIdle{};
 
-// SPEC §14.4: from rest under full force an agent reaches 4.2 / 6.3 / 7.1 / 7.4 m/s after 1-4 steps (±10 %),
+// docs/game.md §14.4: from rest under full force an agent reaches 4.2 / 6.3 / 7.1 / 7.4 m/s after 1-4 steps (±10 %),
 // and spins at about 9 rad/s under full torque.
 TEST(WorldMotion, FullForceSpeedProfileMatchesOriginal) {
   World world(test_config(), 1, 0);
@@ -392,7 +392,7 @@ TEST(WorldGrab, RampGrabbedAndLockedWithFewerBoxesThanTheMaximum) {
   EXPECT_EQ(world.ramp_state(0).pos[0], before.pos[0]);
 }
 
-// Grab and lock reach a ramp through the cuboid of SPEC §3.3, half extents (0.2357, 0.25, 0.3536) about its
+// Grab and lock reach a ramp through the cuboid of docs/game.md §3.3, half extents (0.2357, 0.25, 0.3536) about its
 // bounding-box centre: beside the ramp along its x axis, 0.485 m from its centre is in range, 0.490 m not
 // (a 0.25 m cube would reach both).
 TEST(WorldLock, RampReachIsTheSpecCuboid) {
@@ -410,7 +410,7 @@ TEST(WorldLock, RampReachIsTheSpecCuboid) {
   }
 }
 
-// The arms (SPEC §1.2) widen an agent to 0.36 m across its front: facing the gap (yaw 0) it cannot drive
+// The arms (docs/game.md §1.2) widen an agent to 0.36 m across its front: facing the gap (yaw 0) it cannot drive
 // through 0.33 m between two walls; turned by 90° (0.30 m across) it can.
 TEST(WorldMotion, ArmsWidenTheAgent) {
   for (const double yaw : {0.0, M_PI / 2}) {
@@ -574,7 +574,7 @@ TEST(WorldDeterminism, SameSeedGivesBitIdenticalTrajectory) {
   EXPECT_NE(a, c) << "another seed gives another trajectory";
 }
 
-// Two worlds stepped at once from two threads (DESIGN.md: per-world threading implementation) give the
+// Two worlds stepped at once from two threads (docs/design.md "Threading and ODE": per-world threading implementation) give the
 // same trajectories as stepped one after the other.
 TEST(WorldDeterminism, TwoWorldsSteppedFromTwoThreadsMatchSerial) {
   const WorldConfig config = WorldConfig::full();

@@ -1,5 +1,5 @@
 // PPO learns a task built from the same world: in the `lockbox` scene one agent must reach a cube and lock
-// it (SPEC §9.2 rewards: +5 for the lock, 0.5 per m of approach, +1 every step the cube stays locked; 60-step
+// it (docs/game.md §9.2 rewards: +5 for the lock, 0.5 per m of approach, +1 every step the cube stays locked; 60-step
 // episodes). A random policy scores about 3; locking after about 10 steps and holding the lock scores about
 // 55. The run is deterministic for a given build (any thread count), about 300 k agent-steps.
 #include <gtest/gtest.h>

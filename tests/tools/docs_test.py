@@ -104,6 +104,30 @@ checked += 1
 if "transfer tasks, of " + ", ".join(transfer) not in eval_help:
     failures.append(f"hns eval --help does not name the transfer scenes {transfer}")
 
+# The game and the design are written down in the repository: every `docs/game.md §N` and
+# `docs/design.md "Heading"` that a source file or doc cites has its heading, and nothing cites a document
+# the repository does not have.
+game_sections = set(re.findall(r"^#+ (\d+(?:\.\d+)?)[. ]", (root / "docs/game.md").read_text(), re.M))
+design_sections = set(re.findall(r"^## (.+?)\s*$", (root / "docs/design.md").read_text(), re.M))
+cited_trees = ["src", "tools", "python", "tests", "bench", "docs", "examples", "configs", "cmake"]
+for path in sorted(p for tree in cited_trees for p in (root / tree).rglob("*") if p.is_file()):
+    if path.suffix not in (".cpp", ".hpp", ".h", ".py", ".md", ".sh", ".txt", ".cmake", ".html", ".json") or \
+            path.name == "docs_test.py":
+        continue
+    text = path.read_text(errors="replace")
+    name = path.relative_to(root)
+    for m in re.finditer(r"docs/game\.md §\s*(\d+(?:\.\d+)?)((?:\s*(?:,|and|-)\s*§?\s*\d+(?:\.\d+)?)*)", text):
+        for number in [m.group(1)] + re.findall(r"\d+(?:\.\d+)?", m.group(2)):
+            checked += 1
+            if number not in game_sections:
+                failures.append(f"{name}: cites docs/game.md §{number}, which has no such section")
+    for m in re.finditer(r'docs/design\.md "([^"]+)"', text):
+        checked += 1
+        if m.group(1) not in design_sections:
+            failures.append(f'{name}: cites docs/design.md "{m.group(1)}", which has no such section')
+    for m in re.finditer(r"\bSPEC\b|DESIGN\.md", text):
+        failures.append(f"{name}: cites {m.group(0)}, a document the repository does not have")
+
 readme_code = "\n".join(code_of((root / "README.md").read_text()))
 for scene in scenes:
     checked += 1
