@@ -28,6 +28,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands);
 void add_report_command(CLI::App& app, std::vector<Command>& commands);
 void add_eval_command(CLI::App& app, std::vector<Command>& commands);
 void add_counting_command(CLI::App& app, std::vector<Command>& commands);
+void add_export_command(CLI::App& app, std::vector<Command>& commands);
 
 // Writes trace events as a Chrome trace (chrome://tracing, ui.perfetto.dev), atomically: one row per
 // thread (TBB worker index; thread -1 is the trainer's own thread, shown as "trainer"), one box per phase

@@ -3,8 +3,10 @@
 //   hns play [--scene NAME (physics::kScenes)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
 //   [--envs N]
 //            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE [--gif ANIMATION]
+//            [--html PAGE]
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <optional>
 #include <string>
@@ -18,6 +20,7 @@
 #include "replay/recorder.hpp"
 #include "replay/render.hpp"
 #include "replay/trajectory.hpp"
+#include "replay_html.hpp"
 
 namespace hns::tools {
 
@@ -37,13 +40,15 @@ struct PlayOptions {
   int threads = 1;
   std::optional<int> hiders, seekers, boxes, ramps;
   std::string out;
-  std::string gif;  // also an animated GIF of the recorded episodes (replay/render.hpp)
+  std::string gif;   // also an animated GIF of the recorded episodes (replay/render.hpp)
+  std::string html;  // also the replay page of the recording (as hns replay --html)
 };
 
 int run_play(const PlayOptions& opt) {
   std::unique_ptr<ppo::Policy> policy;
   check_output_path("--out", opt.out, {opt.checkpoint});
   if (!opt.gif.empty()) check_output_path("--gif", opt.gif, {opt.checkpoint, opt.out});
+  if (!opt.html.empty()) check_output_path("--html", opt.html, {opt.checkpoint, opt.out, opt.gif});
   if (!opt.checkpoint.empty()) {
     try {
       policy = ppo::Policy::from_checkpoint(opt.checkpoint, opt.seed);
@@ -94,6 +99,13 @@ int run_play(const PlayOptions& opt) {
   }
   std::printf("  wrote %s (%.1f KB); view it with: hns replay %s --html replay.html\n", opt.out.c_str(),
               bytes / 1024.0, opt.out.c_str());
+  if (!opt.html.empty()) {
+    // The page of the recording as written, as hns replay --html makes it.
+    const std::string bytes = read_file_bytes(opt.out);
+    const std::string page = render_replay_html(bytes, std::filesystem::path(opt.out).filename().string());
+    write_atomically(opt.html, page);
+    std::printf("  wrote %s (%.1f KB); open it in a browser\n", opt.html.c_str(), page.size() / 1024.0);
+  }
   if (!opt.gif.empty()) {
     // The recording as written (so the animation shows exactly the file's episodes).
     const TrajectoryFile file = read_trajectory(opt.out);
@@ -117,7 +129,8 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
       ->check(CLI::IsMember(phys::scene_names()));
   cmd->footer(scene_help());
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
-  cmd->add_option("--checkpoint", opt->checkpoint, "Act with the policy of a training checkpoint (its scene)")
+  cmd->add_option("--checkpoint", opt->checkpoint,
+                  "Act with the policy of a training checkpoint or exported policy (its scene)")
       ->excludes(random);
   cmd->add_option("--episodes", opt->episodes, "Whole episodes to record")
       ->check(CLI::Range(1, 100000))
@@ -137,6 +150,7 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--out", opt->out, "Trajectory file to write")->required();
   cmd->add_option("--gif", opt->gif,
                   "Also write an animated GIF of the episodes (320 px; hns replay --gif has the options)");
+  cmd->add_option("--html", opt->html, "Also write the recording's replay page (as hns replay --html)");
   commands.push_back({cmd, [opt] {
                         opt->seed = parse_seed("--seed", opt->seed_text);
                         return run_play(*opt);

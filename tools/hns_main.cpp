@@ -30,6 +30,7 @@ int main(int argc, char** argv) {
   hns::tools::add_report_command(app, commands);
   hns::tools::add_eval_command(app, commands);
   hns::tools::add_counting_command(app, commands);
+  hns::tools::add_export_command(app, commands);
 
   // Every value is checked the same way in every command: an empty value is an error (not "the default"), and
   // an integer is written in decimal digits with an optional minus sign, nothing else (CLI11 alone also takes

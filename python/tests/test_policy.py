@@ -60,6 +60,23 @@ def test_state_is_returned_not_changed_in_place(checkpoint):
     np.testing.assert_array_equal(again_state, new_state)
 
 
+def test_exported_policy_acts_as_its_checkpoint(run_cli, checkpoint, tmp_path):
+    """hns export's file (no optimiser state) gives the checkpoint's actions and states."""
+    exported = tmp_path / "run.hnspolicy"
+    run_cli("export", checkpoint, "--out", exported)
+    assert exported.stat().st_size < checkpoint.stat().st_size / 2
+    a, b = hns.Policy.load(checkpoint, seed=4), hns.Policy.load(exported, seed=4)
+    assert (b.scene, b.model, b.precision) == (a.scene, a.model, a.precision)
+    env = a.make_env(num_envs=2, threads=1, seed=4)
+    obs, _ = env.reset()
+    sa, sb = a.initial_state(2), b.initial_state(2)
+    for _ in range(30):
+        (acts, sa), (bcts, sb) = a.act(obs, sa), b.act(obs, sb)
+        np.testing.assert_array_equal(acts, bcts)
+        np.testing.assert_array_equal(sa, sb)
+        obs, *_ = env.step(acts)
+
+
 def test_one_policy_for_two_batch_sizes_keeps_its_streams(checkpoint):
     """Acting for batches of 4 and 2 envs in turn continues env e's stream; it never restarts it."""
     alone = hns.Policy.load(checkpoint, seed=2)  # a pathlib.Path works as well as a str

@@ -3,6 +3,9 @@
 // (little-endian, as the machines hns runs on). The payload holds the resolved config (JSON text), the
 // counters, each env's next episode, the flat parameter buffer, Adam's moments and step, and both
 // normalisers' state: everything the next iteration reads, so a resumed run is bit-identical.
+// Exported policies have the same frame with magic "HNSPLCY\n" and a payload of the config, the counters,
+// the parameter buffer and the normalisers (the checkpoint's without the episode list, the optimiser and
+// the exploration state).
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -23,6 +26,7 @@ namespace hns::ppo {
 namespace {
 
 constexpr char kMagic[8] = {'H', 'N', 'S', 'C', 'K', 'P', 'T', '\n'};
+constexpr char kPolicyMagic[8] = {'H', 'N', 'S', 'P', 'L', 'C', 'Y', '\n'};
 constexpr uint32_t kVersion = 1;
 constexpr size_t kHeaderBytes = 8 + 4 + 8;
 
@@ -97,11 +101,19 @@ class Reader {
   std::string path_;
 };
 
-// The payload of a checkpoint file after checking its magic, version, length and checksum.
-std::string read_payload(const std::string& path) {
+struct Payload {
+  std::string bytes;
+  bool exported = false;  // an exported policy (kPolicyMagic), not a checkpoint
+};
+
+// The payload of a checkpoint or exported policy file after checking its magic, version, length and checksum.
+Payload read_payload(const std::string& path) {
   const std::string file = read_regular_file(path, kMaxCheckpointBytes, "checkpoint");
-  if (file.size() < kHeaderBytes + 8 || std::memcmp(file.data(), kMagic, sizeof kMagic) != 0) {
-    throw std::runtime_error("checkpoint " + path + " is not an hns checkpoint (bad magic or too short)");
+  const bool exported =
+      file.size() >= sizeof kPolicyMagic && std::memcmp(file.data(), kPolicyMagic, sizeof kPolicyMagic) == 0;
+  if (file.size() < kHeaderBytes + 8 || (!exported && std::memcmp(file.data(), kMagic, sizeof kMagic) != 0)) {
+    throw std::runtime_error("checkpoint " + path +
+                             " is not an hns checkpoint or exported policy (bad magic or too short)");
   }
   uint32_t version = 0;
   uint64_t length = 0;
@@ -123,7 +135,20 @@ std::string read_payload(const std::string& path) {
     throw std::runtime_error("checkpoint " + path + " is corrupt: checksum mismatch");
   }
 
-  return std::string(payload, length);
+  return {std::string(payload, length), exported};
+}
+
+// The file frame around a payload: magic, version, length, payload, checksum.
+std::string framed(const char (&magic)[8], const std::string& payload) {
+  std::string file(magic, sizeof magic);
+  const uint32_t version = kVersion;
+  const uint64_t length = payload.size();
+  const uint64_t sum = fnv1a64(payload.data(), payload.size());
+  file.append(reinterpret_cast<const char*>(&version), sizeof version);
+  file.append(reinterpret_cast<const char*>(&length), sizeof length);
+  file += payload;
+  file.append(reinterpret_cast<const char*>(&sum), sizeof sum);
+  return file;
 }
 
 }  // namespace
@@ -184,17 +209,7 @@ uint64_t Trainer::fingerprint() const {
 }
 
 void Trainer::save(const std::string& path) const {
-  const std::string payload = checkpoint_payload();
-  std::string file(kMagic, sizeof kMagic);
-  const uint32_t version = kVersion;
-  const uint64_t length = payload.size();
-  const uint64_t sum = fnv1a64(payload.data(), payload.size());
-  file.append(reinterpret_cast<const char*>(&version), sizeof version);
-  file.append(reinterpret_cast<const char*>(&length), sizeof length);
-  file += payload;
-  file.append(reinterpret_cast<const char*>(&sum), sizeof sum);
-
-  write_file_atomically(path, file);
+  write_file_atomically(path, framed(kMagic, checkpoint_payload()));
 }
 
 namespace {
@@ -213,7 +228,7 @@ TrainConfig stored_config(Reader& r, const TrainConfig& base, const std::string&
 }  // namespace
 
 TrainConfig Trainer::checkpoint_config(const std::string& path) {
-  const std::string payload = read_payload(path);
+  const std::string payload = read_payload(path).bytes;
   Reader r(payload.data(), payload.size(), path);
   return stored_config(r, TrainConfig(), path);
 }
@@ -234,13 +249,23 @@ struct Trainer::CheckpointState {
   std::vector<std::vector<std::pair<uint64_t, uint32_t>>> counts;  // intrinsic = count: per env of the run
   nn::FloatBuffer rnd_values, rnd_m, rnd_v;  // intrinsic = rnd: the predictor and its Adam moments
   int64_t rnd_steps = 0;
+  bool exported = false;  // an exported policy: no episodes, optimiser or exploration state (zeros here)
 };
 
 Trainer::CheckpointState Trainer::read_checkpoint(
-    const std::string& path, const std::function<std::string(const TrainConfig&)>& mismatch) const {
-  const std::string file = read_payload(path);
+    const std::string& path, const std::function<std::string(const TrainConfig&)>& mismatch,
+    bool to_resume) const {
+  const Payload payload = read_payload(path);
+  if (payload.exported && to_resume) {
+    throw std::runtime_error("checkpoint " + path +
+                             " is an exported policy (weights and normalisers, no optimiser state or episode "
+                             "list): it can act (hns play --checkpoint, Policy.load) and start a new run "
+                             "(--init-from), not resume one");
+  }
+  const std::string& file = payload.bytes;
   Reader r(file.data(), file.size(), path);
   CheckpointState st;
+  st.exported = payload.exported;
   st.config = stored_config(r, cfg_, path);
   // The caller's refusal first; then the arrays, whose sizes are this trainer's (the model decides them).
   std::string why = mismatch(st.config);
@@ -265,17 +290,21 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   st.iteration = r.get<int64_t>();
   st.agent_steps = r.get<int64_t>();
   st.env_steps = r.get<int64_t>();
-  (void)r.get<uint8_t>();  // need_restart: a fresh simulator always starts the saved episodes
-  st.episodes.resize(size_t(saved.envs));
-  r.get_array(st.episodes.data(), st.episodes.size(), "the env episode list");
   const size_t nf = st.layout.buffer_floats();
   st.values.resize(nf);
-  st.m.resize(nf);
+  st.m.resize(nf);  // zeros in an exported policy
   st.v.resize(nf);
-  r.get_array(st.values.data(), nf, "the parameter buffer");
-  r.get_array(st.m.data(), nf, "Adam's first moment");
-  r.get_array(st.v.data(), nf, "Adam's second moment");
-  st.adam_steps = r.get<int64_t>();
+  if (st.exported) {
+    r.get_array(st.values.data(), nf, "the parameter buffer");
+  } else {
+    (void)r.get<uint8_t>();  // need_restart: a fresh simulator always starts the saved episodes
+    st.episodes.resize(size_t(saved.envs));
+    r.get_array(st.episodes.data(), st.episodes.size(), "the env episode list");
+    r.get_array(st.values.data(), nf, "the parameter buffer");
+    r.get_array(st.m.data(), nf, "Adam's first moment");
+    r.get_array(st.v.data(), nf, "Adam's second moment");
+    st.adam_steps = r.get<int64_t>();
+  }
   for (int k = 0; k < nn::kNumObsKeys; ++k) {
     const auto key = nn::ObsKey(k);
     if (key == nn::kObsSites && saved_norm.features(key) == 0) continue;  // a scene without sites
@@ -289,7 +318,7 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   st.value_norm.biased_mean = r.get<double>();
   st.value_norm.biased_sq = r.get<double>();
   st.value_norm.debias = r.get<double>();
-  if (saved.intrinsic == "count") {
+  if (saved.intrinsic == "count" && !st.exported) {
     st.counts.resize(size_t(saved.envs));
     for (auto& env : st.counts) {
       const uint64_t n = r.peek_length();
@@ -301,7 +330,7 @@ Trainer::CheckpointState Trainer::read_checkpoint(
       for (size_t i = 0; i < n; ++i) env[i] = {keys[i], counts[i]};
     }
   }
-  if (saved.intrinsic == "rnd") {
+  if (saved.intrinsic == "rnd" && !st.exported) {
     const size_t rf = Rnd::predictor_floats(saved_net);
     st.rnd_values.resize(rf);
     st.rnd_m.resize(rf);
@@ -371,18 +400,21 @@ void Trainer::check_values(const CheckpointState& st, const std::string& path) {
 }
 
 void Trainer::load(const std::string& path, LoadMode mode) {
-  CheckpointState st = read_checkpoint(path, [&](const TrainConfig& saved) -> std::string {
-    // kResume: every results-affecting key; kPolicy: only what shapes the networks (model, then scene).
-    if (mode == LoadMode::kResume) return saved.identity_mismatch(cfg_);
-    std::string why;
-    if (saved.model != cfg_.model)
-      why = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
-    if (saved.scene != cfg_.scene) {
-      why += std::string(why.empty() ? "" : "; ") + "scene: checkpoint has " + saved.scene +
-             ", this run has " + cfg_.scene;
-    }
-    return why;
-  });
+  CheckpointState st = read_checkpoint(
+      path,
+      [&](const TrainConfig& saved) -> std::string {
+        // kResume: every results-affecting key; kPolicy: only what shapes the networks (model, then scene).
+        if (mode == LoadMode::kResume) return saved.identity_mismatch(cfg_);
+        std::string why;
+        if (saved.model != cfg_.model)
+          why = "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
+        if (saved.scene != cfg_.scene) {
+          why += std::string(why.empty() ? "" : "; ") + "scene: checkpoint has " + saved.scene +
+                 ", this run has " + cfg_.scene;
+        }
+        return why;
+      },
+      mode == LoadMode::kResume);
   need_restart_ = true;
   iteration_ = st.iteration;
   agent_steps_ = st.agent_steps;
@@ -486,6 +518,11 @@ std::string Trainer::initialize_from(const std::string& path) {
     obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
     carried += cfg_.init_value != 0 ? ", observation and return normalisers" : ", observation normaliser";
   }
+  if (cfg_.init_optimizer != 0 && st.exported) {
+    throw std::runtime_error("--init-from " + path +
+                             ": init_optimizer = 1 needs Adam's moments, and an exported policy has none; "
+                             "use the run's checkpoint.bin or init_optimizer = 0");
+  }
   if (cfg_.init_optimizer != 0) {  // validate() makes sure both networks were carried
     for (const nn::ParamSlice& slice : layout.slices()) {
       const nn::ParamSlice* from = st.layout.find(slice.name);
@@ -497,6 +534,38 @@ std::string Trainer::initialize_from(const std::string& path) {
     carried += ", Adam's moments and step count";
   }
   return carried + " of a " + st.config.scene + " run at iteration " + std::to_string(st.iteration);
+}
+
+uint64_t Trainer::export_policy(const std::string& checkpoint, const std::string& out) {
+  // A trainer of the checkpoint's model and scene only to read and check the file (one env, one thread,
+  // float products: nothing runs).
+  TrainConfig cfg = checkpoint_config(checkpoint);
+  cfg.envs = 1;
+  cfg.threads = 1;
+  cfg.minibatches = 1;
+  cfg.precision = "fp32";
+  const Trainer reader(cfg);
+  const CheckpointState st = reader.read_checkpoint(checkpoint, [](const TrainConfig&) { return ""; });
+  if (st.exported) throw std::runtime_error(checkpoint + " is already an exported policy");
+  Writer w;
+  w.put_string(st.config.to_json());
+  w.put(st.iteration);
+  w.put(st.agent_steps);
+  w.put(st.env_steps);
+  w.put_array(st.values.data(), st.values.size());
+  for (int k = 0; k < nn::kNumObsKeys; ++k) {
+    const auto key = nn::ObsKey(k);
+    if (key == nn::kObsSites && st.obs_mean[k].empty()) continue;  // as in the checkpoint
+    w.put_array(st.obs_mean[k].data(), st.obs_mean[k].size());
+    w.put_array(st.obs_sq[k].data(), st.obs_sq[k].size());
+    w.put(st.obs_debias[k]);
+  }
+  w.put(st.value_norm.biased_mean);
+  w.put(st.value_norm.biased_sq);
+  w.put(st.value_norm.debias);
+  const std::string file = framed(kPolicyMagic, w.bytes());
+  write_file_atomically(out, file);
+  return file.size();
 }
 
 }  // namespace hns::ppo

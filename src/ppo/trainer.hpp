@@ -1,5 +1,5 @@
-// The synchronous PPO self-play loop (paper appendix B, docs/game.md §10.4): every agent of every env acts from one
-// shared policy; one iteration is
+// The synchronous PPO self-play loop (paper appendix B, docs/game.md §10.4): every agent of every env acts
+// from one shared policy; one iteration is
 //
 //   rollout   T = horizon x episodes_per_iteration steps of all envs: obs -> ActorCritic::act (sampled
 //             actions, log-probs, normalised values, LSTM states carried, zeroed at episode starts) ->
@@ -133,6 +133,13 @@ class Trainer {
   uint64_t fingerprint() const;
   // The config stored in a checkpoint (the file is checked as load() checks it).
   static TrainConfig checkpoint_config(const std::string& path);
+  // Exported policy (docs/training.md "Exported policies"): a checkpoint's config, counters, both networks'
+  // weights and the normalisers, without Adam's moments, the episode list or exploration state (about a third
+  // of a checkpoint's size). It acts (load(kPolicy): hns play --checkpoint, Python's Policy.load) and starts
+  // runs (initialize_from with init_optimizer = 0); load(kResume) refuses it. export_policy() writes one from
+  // a checkpoint, atomically, and returns its size in bytes; it refuses (std::runtime_error) a damaged
+  // checkpoint or one that is already an export.
+  static uint64_t export_policy(const std::string& checkpoint, const std::string& out);
   // Starts this (new) run from a checkpoint of the same model whose scene has the same entity types
   // (config keys init_*): the policy's weights always; the value net's with init_value; the observation
   // normaliser (and, with the value net, the return normaliser) with init_normalizers; Adam's moments and
@@ -155,9 +162,10 @@ class Trainer {
   struct Buffers;
   struct CheckpointState;
   // Reads and checks a whole checkpoint; `mismatch` may refuse it by its config (a non-empty reason) before
-  // its arrays are read.
+  // its arrays are read. `to_resume` refuses an exported policy first (it cannot continue a run).
   CheckpointState read_checkpoint(const std::string& path,
-                                  const std::function<std::string(const TrainConfig&)>& mismatch) const;
+                                  const std::function<std::string(const TrainConfig&)>& mismatch,
+                                  bool to_resume = false) const;
   // Refuses (std::runtime_error) values no run can produce: non-finite weights, moments or normalisers,
   // negative counts or second moments.
   static void check_values(const CheckpointState& st, const std::string& path);

@@ -13,6 +13,7 @@
 #include <functional>
 #include <iterator>
 #include <limits>
+#include <memory>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -20,6 +21,7 @@
 #include "nn/precision.hpp"
 #include "physics/scene.hpp"
 #include "ppo/obs_arrays.hpp"
+#include "ppo/policy.hpp"
 
 namespace hns::ppo {
 namespace {
@@ -503,6 +505,81 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
 
 // `hns train --init-from`: a new run starts from a checkpoint's weights, normalisers and optimiser as its
 // init_* keys say, and refuses another network.
+// An exported policy (Trainer::export_policy, `hns export`): about a third of the checkpoint; acts exactly as
+// the checkpoint it came from (the same actions on the same observations, step after step); starts a run
+// with --init-from as the checkpoint does (init_optimizer = 0), and is refused, saying why, where a full
+// checkpoint is needed (resume, init_optimizer = 1) or when exported again.
+TEST(Trainer, ExportedPolicyActsAsItsCheckpointAndOnlyStartsRuns) {
+  const std::string ckpt = temp_path("export_source.bin"), exported = temp_path("export.hnspolicy");
+  TrainConfig cfg = tiny_quadrant();
+  Trainer source(cfg);
+  source.iterate();
+  source.iterate();
+  source.save(ckpt);
+  const uint64_t bytes = Trainer::export_policy(ckpt, exported);
+  EXPECT_EQ(bytes, std::filesystem::file_size(exported));
+  EXPECT_LT(double(bytes), 0.4 * double(std::filesystem::file_size(ckpt)));
+  EXPECT_EQ(Trainer::checkpoint_config(exported).to_json(), Trainer::checkpoint_config(ckpt).to_json());
+
+  // The same actions on the same observations, over whole episodes.
+  const std::unique_ptr<Policy> from_ckpt = Policy::from_checkpoint(ckpt, 5);
+  const std::unique_ptr<Policy> from_export = Policy::from_checkpoint(exported, 5);
+  batch::BatchConfig bc;
+  bc.world = cfg.world();
+  bc.num_envs = 2;
+  batch::BatchSim sim(bc);
+  sim.reset();
+  const size_t n = size_t(bc.num_envs) * size_t(sim.layout().max_agents);
+  std::vector<physics::AgentAction> a(n), b(n);
+  int differ = 0;
+  for (int step = 0; step < 2 * cfg.horizon; ++step) {
+    from_ckpt->act(sim, a);
+    from_export->act(sim, b);
+    for (size_t i = 0; i < n; ++i) differ += std::memcmp(&a[i], &b[i], sizeof a[i]) != 0;
+    sim.step(a);
+  }
+  EXPECT_EQ(differ, 0);
+
+  // A run started from either: the same weights and normalisers.
+  TrainConfig start = tiny_quadrant();
+  start.seed = 11;
+  Trainer t1(start), t2(start);
+  t1.initialize_from(ckpt);
+  EXPECT_NE(t2.initialize_from(exported).find("policy weights"), std::string::npos);
+  EXPECT_EQ(params_of(t1), params_of(t2));
+  EXPECT_EQ(t1.value_normalizer().biased_sq, t2.value_normalizer().biased_sq);
+
+  auto refused = [&](auto&& f, const std::string& says) {
+    try {
+      f();
+      ADD_FAILURE() << "not refused; expected a message with: " << says;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+    }
+  };
+  Trainer resumed(cfg);
+  refused([&] { resumed.load(exported); }, "is an exported policy");
+  start.init_optimizer = 1;
+  Trainer with_adam(start);
+  refused([&] { with_adam.initialize_from(exported); }, "init_optimizer = 1 needs Adam's moments");
+  refused([&] { Trainer::export_policy(exported, temp_path("again.hnspolicy")); },
+          "already an exported policy");
+  // A damaged export is refused as a damaged checkpoint is.
+  std::string file;
+  {
+    std::ifstream in(exported, std::ios::binary);
+    file.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  file[file.size() / 2] ^= 0x10;
+  {
+    std::ofstream out(exported, std::ios::binary);
+    out << file;
+  }
+  refused([&] { (void)Policy::from_checkpoint(exported, 5); }, "checksum mismatch");
+  std::filesystem::remove(ckpt);
+  std::filesystem::remove(exported);
+}
+
 TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
   const std::string path = temp_path("init_source.bin");
   TrainConfig source_cfg = tiny_quadrant();

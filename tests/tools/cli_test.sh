@@ -261,6 +261,27 @@ else
   echo "FAIL: play --checkpoint + report"; cat "$tmp/log"
 fi
 expect_fail 2 "trained on scene 'lockbox'" play --checkpoint "$tmp/run/checkpoint.bin" --scene full --out "$tmp/p2.traj"
+# hns export: a run folder's policy without its optimiser; it plays the same episodes (same trajectory bytes
+# but the file's policy name), writes the replay page in the same command, starts a run, and cannot resume one.
+if "$hns" export "$tmp/run" --out "$tmp/run.hnspolicy" >"$tmp/log" 2>&1 && grep -q "wrote .*run.hnspolicy" "$tmp/log" &&
+   [ "$(stat -c %s "$tmp/run.hnspolicy")" -lt "$(($(stat -c %s "$tmp/run/checkpoint.bin") / 2))" ] &&
+   "$hns" play --checkpoint "$tmp/run.hnspolicy" --episodes 1 --out "$tmp/pe.traj" --html "$tmp/pe.html" >>"$tmp/log" 2>&1 &&
+   grep -q 'id="hns-status"' "$tmp/pe.html" &&
+   "$hns" replay "$tmp/p.traj" --gif "$tmp/p.gif" >>"$tmp/log" 2>&1 && "$hns" replay "$tmp/pe.traj" --gif "$tmp/pe.gif" >>"$tmp/log" 2>&1 &&
+   cmp -s "$tmp/p.gif" "$tmp/pe.gif" &&
+   "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --init-from "$tmp/run.hnspolicy" \
+     --out "$tmp/init-exported" >>"$tmp/log" 2>&1 && grep -q "starting from .*policy weights" "$tmp/log"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: export, play and init-from the export"; cat "$tmp/log"
+fi
+cp "$tmp/run.hnspolicy" "$tmp/init-exported/checkpoint.bin"
+expect_fail 2 "is an exported policy .* not resume one" train --resume "$tmp/init-exported"
+expect_fail 2 "already an exported policy" export "$tmp/run.hnspolicy" --out "$tmp/again.hnspolicy"
+expect_fail 2 "not an hns checkpoint" export "$tmp/train.json" --out "$tmp/again.hnspolicy"
+expect_fail 2 "init_optimizer = 1 needs Adam's moments" train --config "$tmp/train.json" --envs 3 \
+  --set init_optimizer=1 --init-from "$tmp/run.hnspolicy" --out "$tmp/bad-adam"
 # train --init-from: a new run starts from the checkpoint's weights; a bad or foreign checkpoint is refused
 # before anything of the --out folder is removed.
 if "$hns" train --config "$tmp/train.json" --iterations 1 --threads 1 --seed 9 --envs 3 \
