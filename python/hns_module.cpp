@@ -177,8 +177,19 @@ class BusyGuard {
   std::atomic<bool>& flag_;
 };
 
+// Sets a Python exception of `type` whose text is `message` as UTF-8, with any byte that is not (a damaged
+// file's, echoed in the message) shown as U+FFFD rather than losing the whole message.
+void set_error(PyObject* type, const std::string& message) {
+  PyObject* text = PyUnicode_DecodeUTF8(message.data(), py::ssize_t(message.size()), "replace");
+  if (text == nullptr) {  // out of memory: whatever Python raised stands
+    return;
+  }
+  PyErr_SetObject(type, text);
+  Py_DECREF(text);
+}
+
 [[noreturn]] void raise(PyObject* type, const std::string& message) {
-  PyErr_SetString(type, message.c_str());
+  set_error(type, message);
   throw py::error_already_set();
 }
 
@@ -979,7 +990,15 @@ PYBIND11_MODULE(_hns, m) {
   }
   m.attr("scenes") = scenes;
   m.attr("scene_info") = scene_info;
-  py::register_exception<hns::replay::TrajectoryError>(m, "TrajectoryError", PyExc_ValueError);
+  // TrajectoryError (a ValueError) with the message kept even where it quotes a damaged file's bytes.
+  static py::exception<hns::replay::TrajectoryError> trajectory_error(m, "TrajectoryError", PyExc_ValueError);
+  py::register_exception_translator([](std::exception_ptr p) {
+    try {
+      if (p) std::rethrow_exception(p);
+    } catch (const hns::replay::TrajectoryError& e) {
+      set_error(trajectory_error.ptr(), e.what());
+    }
+  });
 
   py::class_<BatchEnv>(m, "BatchEnv", py::dynamic_attr(), R"doc(
 A batch of hide-and-seek games stepped together (TBB threads; the GIL is released while stepping).

@@ -24,6 +24,7 @@
 #include "ppo/atomic_file.hpp"
 #include "ppo/eval.hpp"
 #include "ppo/trainer.hpp"
+#include "replay/metrics.hpp"
 
 namespace hns::tools {
 namespace {
@@ -436,7 +437,12 @@ int run_eval(const EvalOptions& opt) {
     }
     if (opt.resume) {
       try {
-        const json saved = json::parse(ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:"));
+        const std::string text = ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:");
+        if (!replay::json_nesting_within(text)) {
+          throw physics::ConfigError("--resume " + opt.out + ": eval.json nests more than " +
+                                     std::to_string(replay::kMaxJsonDepth) + " levels deep");
+        }
+        const json saved = json::parse(text);
         json old = saved.at("settings");
         const json recorded = old.value("pretrained", json::object());
         old.erase("pretrained");

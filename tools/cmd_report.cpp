@@ -68,7 +68,7 @@ int run_report(const ReportOptions& opt) {
       std::fprintf(stderr, "hns report: %s\n", e.what());
       return 2;
     }
-    config = nlohmann::json::parse(cf, nullptr, false);
+    config = replay::json_nesting_within(cf) ? nlohmann::json::parse(cf, nullptr, false) : nlohmann::json();
     if (config.is_discarded() || !config.is_object()) {
       std::fprintf(stderr, "hns report: %s is not a JSON object\n", (dir / "config.json").string().c_str());
       return 2;

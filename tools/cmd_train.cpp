@@ -252,6 +252,9 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
       throw physics::ConfigError(
           "--overwrite and --resume: give one (--resume continues the run in its folder)");
     if (!fs::exists(fs::path(dir) / "checkpoint.bin")) {
+      // A run starting in the folder holds its lock before its first checkpoint: name that process.
+      if (lead && fs::exists(fs::path(dir) / ppo::FolderLock::kFileName))
+        (void)lock_run_folder("--resume", dir);
       throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
     }
     if (lead) lock = lock_run_folder("--resume", dir);

@@ -2,8 +2,10 @@
 // the libraries. Exit status: 0 success, 2 bad usage or configuration, 1 runtime failure.
 #include <CLI/CLI.hpp>
 
+#include <filesystem>
 #include <iostream>
 #include <new>
+#include <regex>
 #include <string>
 #include <vector>
 
@@ -49,11 +51,22 @@ int main(int argc, char** argv) {
         return std::string();
       },
       "");
+  // A real number in JSON's decimal form (CLI11 alone also takes nan, inf and hex floats, which pass its
+  // range checks: nan compares false).
+  const CLI::Validator decimal_number(
+      [](std::string& value) {
+        static const std::regex form(R"(-?(0|[1-9][0-9]*)(\.[0-9]+)?([eE][+-]?[0-9]+)?)");
+        if (!std::regex_match(value, form))
+          return "'" + value + "' is not a decimal number (digits, an optional sign, fraction and exponent)";
+        return std::string();
+      },
+      "");
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) {
     for (CLI::Option* opt : sub->get_options([](CLI::Option*) { return true; })) {
       if (opt->get_type_size() == 0) continue;  // a flag without a value
       opt->check(non_empty);
       if (opt->get_type_name().rfind("INT", 0) == 0) opt->check(decimal_integer);
+      if (opt->get_type_name().rfind("FLOAT", 0) == 0) opt->check(decimal_number);
     }
   }
 
@@ -106,6 +119,15 @@ int main(int argc, char** argv) {
   } catch (const hns::physics::ConfigError& e) {
     std::cerr << "hns: bad configuration: " << e.what() << "\n";
     return 2;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // A path that cannot resolve (a symlink loop) is bad input; any other file system failure is not.
+    if (e.code() == std::errc::too_many_symbolic_link_levels) {
+      std::cerr << "hns: bad path: " << e.path1().string()
+                << ": too many levels of symbolic links (a symlink loop?)\n";
+      return 2;
+    }
+    std::cerr << "hns: error: " << e.what() << "\n";
+    return 1;
   } catch (const std::bad_alloc&) {
     std::cerr << "hns: error: out of memory (use fewer envs, a smaller model or a bigger machine)\n";
     return 1;

@@ -27,7 +27,7 @@ def test_read_trajectory(run_cli, tmp_path):
         assert hiders == pytest.approx(ep["hider_return"], abs=1e-3)
 
 
-def test_read_trajectory_errors(tmp_path):
+def test_read_trajectory_errors(checkpoint, tmp_path):
     with pytest.raises(FileNotFoundError):
         hns.read_trajectory(str(tmp_path / "none.traj"))
     with pytest.raises(ValueError, match="NUL"):
@@ -39,6 +39,18 @@ def test_read_trajectory_errors(tmp_path):
     with pytest.raises(hns.TrajectoryError) as info:
         hns.read_trajectory(str(bad))
     assert isinstance(info.value, ValueError) and "bad.traj" in str(info.value)
+    # A message that quotes a damaged header's bytes (here not UTF-8) keeps its text (it was empty before).
+    good = (checkpoint.parent / "replay.traj").read_bytes()
+    at = good.index(b"hns train") + 2
+    flipped = tmp_path / "flipped.traj"
+    flipped.write_bytes(good[:at] + b"\xff" + good[at + 1:])
+    with pytest.raises(hns.TrajectoryError) as info:
+        hns.read_trajectory(str(flipped))
+    assert "flipped.traj" in str(info.value) and "\ufffd" in str(info.value)
+    deep = tmp_path / "deep.jsonl"
+    deep.write_text('{"iteration": 1, "agent_steps": 1, "z": ' + "[" * 70000 + "]" * 70000 + "}\n")
+    with pytest.raises(ValueError, match="deep.jsonl:1"):
+        hns.read_metrics(deep)
 
 
 def test_read_metrics(checkpoint, tmp_path):

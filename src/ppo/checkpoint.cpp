@@ -372,6 +372,12 @@ void Trainer::check_values(const CheckpointState& st, const std::string& path) {
   counter("the RND optimiser's step count", st.rnd_steps);
   for (size_t e = 0; e < st.episodes.size(); ++e) {
     if (st.episodes[e] < 0) refuse("env " + std::to_string(e) + "'s episode count is negative");
+    // The counter is an int32 that the run keeps counting up: no run comes near 2^30 episodes per env, and
+    // one resumed from there could overflow it in the checkpoint it writes.
+    if (st.episodes[e] > (1 << 30)) {
+      refuse("env " + std::to_string(e) + "'s episode count is " + std::to_string(st.episodes[e]) +
+             " (at most 2^30)");
+    }
   }
   const auto floats = [&](const char* name, const auto& values, bool non_negative) {
     const int64_t i = first_bad(values.data(), values.size(), non_negative);

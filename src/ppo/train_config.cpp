@@ -377,7 +377,9 @@ void TrainConfig::set(std::string_view key, std::string_view value) {
     if (key != name) return;
     found = true;
     std::string text(value);
-    if constexpr (!std::is_same_v<std::decay_t<decltype(field)>, std::string>) {
+    // The 0/1 switches also take true and false; a number does not.
+    const std::string_view n(name);
+    if (n == "spawn_quarter" || (n.substr(0, 5) == "init_" && n != "init_from")) {
       if (text == "true") text = "1";
       if (text == "false") text = "0";
     }

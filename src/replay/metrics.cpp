@@ -14,8 +14,30 @@ bool is_record(const nlohmann::json& row) {
 
 }  // namespace
 
+bool json_nesting_within(std::string_view text, int max_depth) {
+  int depth = 0;
+  bool in_string = false;
+  for (size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (in_string) {
+      if (c == '\\') {
+        ++i;  // the escaped character, whatever it is
+      } else if (c == '"') {
+        in_string = false;
+      }
+    } else if (c == '"') {
+      in_string = true;
+    } else if (c == '[' || c == '{') {
+      if (++depth > max_depth) return false;
+    } else if (c == ']' || c == '}') {
+      --depth;
+    }
+  }
+  return true;
+}
+
 bool is_iteration_record(std::string_view line) {
-  return is_record(nlohmann::json::parse(line, nullptr, false));
+  return json_nesting_within(line) && is_record(nlohmann::json::parse(line, nullptr, false));
 }
 
 MetricsRows read_metrics_jsonl(std::string_view text) {
@@ -27,7 +49,8 @@ MetricsRows read_metrics_jsonl(std::string_view text) {
     text = end == std::string_view::npos ? std::string_view() : text.substr(end + 1);
     ++number;
     if (line.empty()) continue;
-    nlohmann::json row = nlohmann::json::parse(line, nullptr, false);
+    nlohmann::json row =
+        json_nesting_within(line) ? nlohmann::json::parse(line, nullptr, false) : nlohmann::json();
     if (!is_record(row)) {
       throw MetricsError(number,
                          "is not an iteration record (a JSON object with iteration, a whole number >= 1, and "

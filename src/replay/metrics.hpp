@@ -20,6 +20,14 @@ struct MetricsRows {
   size_t rows = 0;
 };
 
+// JSON that hns reads from files (metrics rows, trajectory headers, a report's config, eval.json) nests no
+// deeper than this: nlohmann::json's parser and printer recurse once per level, so a file nested tens of
+// thousands of levels deep would overflow the stack. Deeper text counts as malformed.
+inline constexpr int kMaxJsonDepth = 64;
+// Whether the arrays and objects of a JSON text nest at most `max_depth` levels (brackets inside strings do
+// not count; the text need not be valid JSON otherwise).
+bool json_nesting_within(std::string_view text, int max_depth = kMaxJsonDepth);
+
 // Whether one line of metrics.jsonl is an iteration record: a JSON object whose "iteration" is a whole
 // number >= 1 and whose "agent_steps" is a number. What hns report reads and hns train --resume keeps.
 bool is_iteration_record(std::string_view line);

@@ -1,5 +1,7 @@
 #include "replay/stages.hpp"
 
+#include "replay/metrics.hpp"
+
 #include <nlohmann/json.hpp>
 
 #include <array>
@@ -134,7 +136,8 @@ StageTracker::StageTracker(const std::string& scene) : w_(std::make_unique<Stage
 StageTracker::~StageTracker() = default;
 
 std::vector<int> StageTracker::add(std::string_view row) {
-  const nlohmann::json j = nlohmann::json::parse(row, nullptr, false);
+  const nlohmann::json j =
+      json_nesting_within(row) ? nlohmann::json::parse(row, nullptr, false) : nlohmann::json();
   return w_->add(j.is_object() ? j : nlohmann::json::object());
 }
 

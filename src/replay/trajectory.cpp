@@ -19,6 +19,7 @@
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
+#include "replay/metrics.hpp"
 
 namespace hns::replay {
 namespace {
@@ -302,6 +303,10 @@ Chunk read_chunk(std::string_view bytes, uint64_t& pos, const std::string& what,
                           " bytes; truncated file?)");
   }
   Chunk c;
+  if (!json_nesting_within(std::string_view(bytes).substr(pos + 4, length))) {
+    throw TrajectoryError(where + ": header nests arrays or objects more than " +
+                          std::to_string(kMaxJsonDepth) + " levels deep");
+  }
   try {
     c.header = json::parse(bytes.substr(pos + 4, length));
   } catch (const json::exception& e) {  // parse_error, and out_of_range for a number beyond a double's range
@@ -415,6 +420,23 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     if (w[3] < 0 || w[4] < 0 || w[5] < 0)
       f.fail("walls", "entry " + std::to_string(i) + ": negative half extent");
   }
+  // Geometry where a body can be: centres and extents within the bounds every recorded pose keeps.
+  const auto bounded = [&](const char* key, const auto& rows, std::initializer_list<int> z_columns) {
+    for (size_t i = 0; i < rows.size(); ++i) {
+      for (size_t k = 0; k < rows[i].size(); ++k) {
+        const bool z = std::find(z_columns.begin(), z_columns.end(), int(k)) != z_columns.end();
+        if (std::abs(rows[i][k]) > (z ? kTrajectoryMaxZ : kTrajectoryMaxXY)) {
+          f.fail(key, "entry " + std::to_string(i) + ": value " + std::to_string(rows[i][k]) + " is beyond " +
+                          std::to_string(z ? kTrajectoryMaxZ : kTrajectoryMaxXY) + " m");
+        }
+      }
+    }
+  };
+  bounded("walls", ep.walls, {2, 5});
+  bounded("cylinders", ep.cylinders, {3});
+  bounded("sites", ep.sites, {});
+  bounded("box_sizes", ep.box_sizes, {2});
+  bounded("restrict_rect", std::vector<std::array<double, 4>>{ep.restrict_rect}, {});
   for (size_t i = 0; i < ep.box_sizes.size(); ++i) {
     const auto& s = ep.box_sizes[i];
     if (s[0] <= 0 || s[1] <= 0 || s[2] <= 0)

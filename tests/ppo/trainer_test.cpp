@@ -500,11 +500,15 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
                    std::memcpy(p.data() + first_param + 4 * 5, &nan, 4);
                  }),
                  cfg, "the parameter buffer has nan at index 5");
+  // An episode counter the run would overflow when it counts on (int32: 2^31 - 1 is near the end).
+  expect_refused(resummed([&](std::string& p, size_t at) {
+                   const int32_t near_end = std::numeric_limits<int32_t>::max();
+                   std::memcpy(p.data() + at + 3 * 8 + 1 + 8, &near_end, 4);
+                 }),
+                 cfg, "env 0's episode count is 2147483647 (at most 2^30)");
   std::remove(path.c_str());
 }
 
-// `hns train --init-from`: a new run starts from a checkpoint's weights, normalisers and optimiser as its
-// init_* keys say, and refuses another network.
 // An exported policy (Trainer::export_policy, `hns export`): about a third of the checkpoint; acts exactly as
 // the checkpoint it came from (the same actions on the same observations, step after step); starts a run
 // with --init-from as the checkpoint does (init_optimizer = 0), and is refused, saying why, where a full
@@ -580,6 +584,8 @@ TEST(Trainer, ExportedPolicyActsAsItsCheckpointAndOnlyStartsRuns) {
   std::filesystem::remove(exported);
 }
 
+// `hns train --init-from`: a new run starts from a checkpoint's weights, normalisers and optimiser as its
+// init_* keys say, and refuses another network.
 TEST(Trainer, InitializeFromCarriesWhatItsKeysSay) {
   const std::string path = temp_path("init_source.bin");
   TrainConfig source_cfg = tiny_quadrant();

@@ -246,6 +246,23 @@ TEST(TrajectoryErrors, EpisodeHeaderFields) {
                    1),
                {"at least one agent"});
   expect_error(edited([](RawChunk& c) { c.header["kind"] = "file"; }, 1), {"\"kind\"", "\"episode\""});
+  // Geometry no arena has: a wall 1e300 m away, a site far out, a box size beyond any body.
+  expect_error(edited([](RawChunk& c) { c.header["walls"][0][0] = 1e300; }, 1),
+               {"episode 0", "\"walls\"", "entry 0", "beyond 200"});
+  expect_error(edited([](RawChunk& c) { c.header["walls"][1][5] = 1000.0; }, 1),
+               {"\"walls\"", "entry 1", "beyond 100"});
+  expect_error(edited([](RawChunk& c) { c.header["box_sizes"][0][0] = 5000.0; }, 1),
+               {"episode 0", "\"box_sizes\"", "beyond 200"});
+  expect_error(edited([](RawChunk& c) { c.header["restrict_rect"][2] = -1e9; }, 1), {"\"restrict_rect\""});
+  // JSON nested past any header's needs (70,000 levels overflowed the parser's stack before).
+  expect_error(edited(
+                   [](RawChunk& c) {
+                     json deep = json::array();
+                     for (int i = 0; i < 65; ++i) deep = json::array({deep});
+                     c.header["zz"] = deep;
+                   },
+                   1),
+               {"episode 0", "more than 64 levels deep"});
   // The pages show the scene and layout names: only hns's own are read, never markup from a file.
   expect_error(edited([](RawChunk& c) { c.header["scene"] = "<img src=x onerror=alert(1)>"; }, 1),
                {"episode 0", "\"scene\"", "is not a scene of hns"});

@@ -101,6 +101,16 @@ else
   fail "the first run of a busy folder did not end as a normal interrupted run (exit $rc)"
   cat "$tmp/busy.log"
 fi
+# --resume while a fresh run is starting in the folder (no checkpoint yet: checkpoint_every is beyond the run)
+# names that run's process too.
+"$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --set checkpoint_every=100000 \
+  --out "$tmp/early" >"$tmp/early.log" 2>&1 &
+early=$!
+pids+=("$early")
+for _ in $(seq 1200); do [ -s "$tmp/early/metrics.jsonl" ] && break; sleep 0.1; done
+expect_fail 2 "early.*in use by process $early" train --resume "$tmp/early" --iterations 1
+kill -9 "$early"
+wait "$early" 2>/dev/null
 # Two fresh starts a moment apart: one of them is refused.
 "$hns" train --config "$tmp/train.json" --threads 1 --iterations 100000 --out "$tmp/twin" >"$tmp/twin1.log" 2>&1 &
 t1=$!
@@ -217,6 +227,40 @@ echo "mine" >"$tmp/ow-dir/metrics.jsonl/user.txt"
 expect_fail 2 "metrics.jsonl is a folder" train --config "$tmp/train.json" --iterations 1 --out "$tmp/ow-dir" --overwrite
 [ -f "$tmp/ow-fifo/checkpoint.bin" ] && [ -f "$tmp/ow-dir/checkpoint.bin" ] && [ -f "$tmp/ow-dir/replay.traj" ] &&
   [ -f "$tmp/ow-dir/metrics.jsonl/user.txt" ] && ok || fail "a refused --overwrite removed run files"
+
+# Fourth probe: JSON nested tens of thousands deep (a stack overflow in the parser before), a wall far outside
+# any arena in a re-checksummed header, true for a number, a NaN flag.
+python3 - "$tmp/q.traj" "$tmp/deep.traj" "$tmp/far.traj" <<'PY'
+import hashlib, json, struct, sys
+src = open(sys.argv[1], "rb").read()
+n = struct.unpack_from("<I", src, 8)[0]
+header = json.loads(src[12:12 + n])
+def framed(text):
+    text = text.encode()
+    text += b" " * ((-(12 + len(text))) % 8)
+    return src[:8] + struct.pack("<I", len(text)) + text + src[12 + n:]
+deep = json.dumps(header, separators=(",", ":"))[:-1] + ',"zz":' + "[" * 70000 + "]" * 70000 + "}"
+open(sys.argv[2], "wb").write(framed(deep))
+PY
+expect_fail 2 "header nests arrays or objects more than 64 levels deep" replay "$tmp/deep.traj" --html "$tmp/x.html"
+cp -r "$tmp/run" "$tmp/deep-metrics"
+python3 -c "import sys; open(sys.argv[1], 'a').write('{\"iteration\": 9, \"agent_steps\": 1, \"z\": ' + '[' * 70000 + ']' * 70000 + '}\n')" \
+  "$tmp/deep-metrics/metrics.jsonl"
+expect_fail 2 "metrics.jsonl:3 is not an iteration record" report "$tmp/deep-metrics" --html "$tmp/x.html"
+if resume "$tmp/deep-metrics" --iterations 3 >"$tmp/log" 2>&1 && grep -q "line 3 is not a whole metrics row" "$tmp/log"; then
+  ok
+else
+  fail "--resume kept a metrics row nested 70000 deep: $(head -c 600 "$tmp/log")"
+fi
+cp -r "$tmp/run" "$tmp/loop"
+rm "$tmp/loop/checkpoint.bin"
+ln -s "$tmp/loop/checkpoint.bin" "$tmp/loop/checkpoint.bin"
+expect_fail 2 "checkpoint.bin: too many levels of symbolic links" train --resume "$tmp/loop"
+expect_fail 2 "lr = 'true' is invalid" train --set lr=true --out "$tmp/x3"
+expect_fail 2 "epochs = 'false' is invalid" train --set epochs=false --out "$tmp/x3"
+expect_fail 2 "--speed: 'nan' is not a decimal number" replay "$tmp/q.traj" --gif "$tmp/x.gif" --speed nan
+expect_fail 2 "--speed: '0x1p0' is not a decimal number" replay "$tmp/q.traj" --gif "$tmp/x.gif" --speed 0x1p0
+[ -e "$tmp/x3" ] || [ -e "$tmp/x.gif" ] && fail "a refused command wrote its output"
 
 echo "$passed passed, $failed failed"
 [ "$failed" -eq 0 ]
