@@ -137,7 +137,15 @@ def detect_stages(rows, scene):
     holds too few episodes), `on` (bool array), and where the criterion first held: `first_row` (-1: never),
     `first_iteration`, `first_agent_steps`, `first_episodes`.
     """
-    report = _json.loads(_detect_stages_json(_json.dumps(list(rows)), str(scene)))
+    scene = str(scene)
+    if scene not in scenes:
+        raise ValueError("scene %r is not a scene of hns (hns.scenes: %s)" % (scene, ", ".join(scenes)))
+    rows = list(rows)
+    for i, row in enumerate(rows):
+        if not isinstance(row, dict) or "iteration" not in row or "agent_steps" not in row:
+            raise ValueError("rows[%d] is not a metrics row (a dict with iteration and agent_steps, as "
+                             "read_metrics() gives)" % i)
+    report = _json.loads(_detect_stages_json(_json.dumps(rows), scene))
     for stage in report["stages"]:
         stage["value"] = _numpy.asarray([float("nan") if v is None else v for v in stage["value"]], dtype=float)
         stage["on"] = _numpy.asarray([c == "1" for c in stage["on"]], dtype=bool)
@@ -149,4 +157,9 @@ def metrics_column(rows, key, default=float("nan")):
 
     Example: metrics_column(rows, "hider_reward") against metrics_column(rows, "agent_steps").
     """
+    rows = list(rows)
+    for i, row in enumerate(rows):
+        if not isinstance(row, dict):
+            raise TypeError("rows[%d] is a %s, not a metrics row (a dict, as read_metrics() gives)"
+                            % (i, type(row).__name__))
     return _numpy.asarray([row.get(key, default) for row in rows], dtype=float)

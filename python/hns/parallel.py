@@ -83,6 +83,8 @@ class ParallelEnv:
             raise RuntimeError("the episode has ended: call reset()")
         batch = _np.zeros((1, self._env.max_agents, 5), dtype=_np.uint8)
         batch[0, :, :3] = 5  # agents not named stand still
+        if not isinstance(actions, dict):
+            raise TypeError("actions must be a dict of agent name -> action (got %s)" % type(actions).__name__)
         for agent, action in actions.items():
             if agent not in self.agents:
                 raise KeyError("%r is not an agent of this episode (agents: %s)" % (agent, self.agents))

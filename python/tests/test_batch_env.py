@@ -458,6 +458,8 @@ def test_parallel_env_follows_pettingzoos_contract():
     assert env.possible_agents == ["agent_%d" % i for i in range(4)] and env.agents == []
     observations, infos = env.reset(seed=5)
     assert env.agents and set(observations) == set(env.agents) == set(infos)
+    with pytest.raises(TypeError, match="dict of agent name"):
+        env.step(None)
     assert {infos[a]["hider"] for a in env.agents} == {True, False}, "both teams play"
     for a in env.agents:
         assert env.observation_space(a).contains(observations[a]), a

@@ -81,6 +81,13 @@ def test_detect_stages():
     assert not fort["on"][23] and fort["on"][24] and fort["on"].dtype == bool
     assert stages["running and chasing"]["first_row"] == -1 and np.isnan(stages["running and chasing"]["value"]).all()
     assert hns.detect_stages(rows, "lockbox")["stages"] == []
+    # Bad input is refused, not answered with an empty report or an AttributeError.
+    with pytest.raises(ValueError, match="'nope' is not a scene"):
+        hns.detect_stages(rows, "nope")
+    with pytest.raises(ValueError, match=r"rows\[0\] is not a metrics row"):
+        hns.detect_stages([{}], "quadrant")
+    with pytest.raises(TypeError, match=r"rows\[0\] is a int"):
+        hns.metrics_column([1, 2], "a")
 
 
 def episodes_of(path):

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <charconv>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -16,8 +17,8 @@ namespace {
 
 constexpr int kMaxContactsPerPair = 8;
 
-// Body constants (docs/game.md §1.2). Rotation about x and y is removed by a huge inertia on those axes plus a
-// projection back to pure yaw after every substep, which together act like the original's missing hinges.
+// Body constants (docs/game.md §1.2). Rotation about x and y is removed by a huge inertia on those axes plus
+// a projection back to pure yaw after every substep, which together act like the original's missing hinges.
 constexpr double kBodyMass = 1.0;                       // kg, agents, boxes and ramps alike
 constexpr double kLockedTiltInertia = 1e4;              // kg·m², x/y inertia of every movable body
 constexpr double kAgentYawInertia = 0.4 * 0.15 * 0.15;  // kg·m², solid sphere r = 0.15
@@ -88,9 +89,11 @@ void set_yaw(dBodyID body, double yaw) {
 }
 
 std::string describe(const char* field, double value, const char* allowed) {
-  std::ostringstream out;
-  out << field << " = " << value << " is invalid: " << allowed;
-  return out.str();
+  // The shortest text that reads back as the value: 1000001 and 0.1, not 1e+06 or 0.10000000000000001.
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value);
+  return std::string(field) + " = " + std::string(buf, ec == std::errc() ? end : buf) +
+         " is invalid: " + allowed;
 }
 
 }  // namespace
@@ -152,7 +155,8 @@ int collide_sphere_ramp(dGeomID g1, dGeomID g2, dContactGeom* contact) {
 }
 
 // Contacts between geoms g1 and g2 (of bodies b1 and b2, null for static geoms) with the pair friction
-// max(μ1, μ2) (docs/game.md §1.2; ODE's friction pyramid scaled by the normal force, turned along the slip below).
+// max(μ1, μ2) (docs/game.md §1.2; ODE's friction pyramid scaled by the normal force, turned along the slip
+// below).
 void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b2) {
   dContact contact[kMaxContactsPerPair];
   const int c1 = dGeomGetClass(g1), c2 = dGeomGetClass(g2);
@@ -177,8 +181,8 @@ void add_contacts(World::Ode* ode, dGeomID g1, dBodyID b1, dGeomID g2, dBodyID b
     // bottom corners by their depth, as in MuJoCo, instead of the rigid solver's arbitrary split, which
     // could put the floor's friction on any corner and turn a pushed ramp or long box the wrong way. (An
     // agent touches the floor at one point: it stays rigid and at its exact height.)
-    if (ode->floor_cfm > 0 && (c1 == dPlaneClass || c2 == dPlaneClass) &&
-        info(g1) != &ode->agent_info && info(g2) != &ode->agent_info) {
+    if (ode->floor_cfm > 0 && (c1 == dPlaneClass || c2 == dPlaneClass) && info(g1) != &ode->agent_info &&
+        info(g2) != &ode->agent_info) {
       contact[i].surface.mode |= dContactSoftCFM;
       contact[i].surface.soft_cfm = ode->floor_cfm;
     }
@@ -301,8 +305,8 @@ WorldConfig WorldConfig::lockbox() {
 }
 
 namespace {
-// docs/game.md §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy (one
-// other agent, one ramp at least), grab and lock as in the game, no preparation phase.
+// docs/game.md §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy
+// (one other agent, one ramp at least), grab and lock as in the game, no preparation phase.
 WorldConfig transfer_task(WorldConfig::Task task, int horizon) {
   WorldConfig c = WorldConfig::lockbox();
   c.task = task;
@@ -855,9 +859,9 @@ void World::apply_grab(std::span<const AgentAction> actions) {
   }
 }
 
-// Lock (docs/game.md §3.4 'all_lock_team_specific', §14.3): an object in range and in view of an agent pressing
-// lock gets pinned, unless a member of the team that locked it last stands in range, sees it and does not
-// press lock: that unlocks it. A never-locked object has no owner, so nobody vetoes its first lock.
+// Lock (docs/game.md §3.4 'all_lock_team_specific', §14.3): an object in range and in view of an agent
+// pressing lock gets pinned, unless a member of the team that locked it last stands in range, sees it and
+// does not press lock: that unlocks it. A never-locked object has no owner, so nobody vetoes its first lock.
 void World::apply_lock(std::span<const AgentAction> actions) {
   const int n_obj = num_objects();
   const int first = config_.lock_ramps ? n_obj - 1 : num_boxes() - 1;

@@ -191,6 +191,7 @@ class FlatJsonReader {
 
   std::vector<JsonEntry> read() {
     std::vector<JsonEntry> out;
+    check_utf8();
     skip_space();
     expect('{');
     skip_space();
@@ -315,6 +316,12 @@ class FlatJsonReader {
         } else {
           fail("unsupported escape in a string");
         }
+      } else if (static_cast<unsigned char>(s_[i_]) < 0x20) {
+        char buf[96];
+        std::snprintf(
+            buf, sizeof buf, "a raw control character (byte 0x%02x) in a string: JSON writes it as \\u%04x",
+            unsigned(static_cast<unsigned char>(s_[i_])), unsigned(static_cast<unsigned char>(s_[i_])));
+        fail(buf);
       } else {
         out += s_[i_];
       }
@@ -322,6 +329,20 @@ class FlatJsonReader {
     }
     expect('"');
     return out;
+  }
+  // JSON text is UTF-8: a byte sequence that is not (a damaged or binary file) is refused before anything is
+  // read, so no message quotes it.
+  void check_utf8() const {
+    for (size_t k = 0; k < s_.size();) {
+      const auto c = static_cast<unsigned char>(s_[k]);
+      const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+      bool ok = n > 0 && k + n <= s_.size() && !(n == 2 && c < 0xC2);
+      for (size_t j = 1; ok && j < n; ++j) ok = (static_cast<unsigned char>(s_[k + j]) >> 6) == 0x2;
+      if (!ok) {
+        throw ConfigError(origin_ + ": not UTF-8 text (byte " + std::to_string(k) + ")");
+      }
+      k += n;
+    }
   }
   // A number in JSON's grammar (-? (0 | [1-9][0-9]*) (. [0-9]+)? ([eE] [+-]? [0-9]+)?), true or false.
   static bool json_number_or_literal(std::string_view v) {
@@ -598,6 +619,7 @@ void TrainConfig::validate() const {
   } catch (const std::invalid_argument&) {
     check(false, "model", model, "must be one of small, paper");
   }
+  check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");
   const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0 || spawn_quarter != 0;
   check(!counts_set || !w.is_transfer_task(), "scene", scene,
         "sets its own agent and object counts and spawns: the keys hiders, seekers, boxes, ramps and "
@@ -614,7 +636,6 @@ void TrainConfig::validate() const {
         "with seekers = " + std::to_string(seekers) + ": at least one agent is required");
   w.validate();
   w.scene.check_placeable();
-  check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");
   check(envs >= 1 && envs <= 65536, "envs", envs, "must be in [1, 65536]");
   check(episodes_per_iteration >= 1 && episodes_per_iteration <= 1000, "episodes_per_iteration",
         episodes_per_iteration, "must be in [1, 1000]");
