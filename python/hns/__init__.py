@@ -145,7 +145,12 @@ def detect_stages(rows, scene):
         if not isinstance(row, dict) or "iteration" not in row or "agent_steps" not in row:
             raise ValueError("rows[%d] is not a metrics row (a dict with iteration and agent_steps, as "
                              "read_metrics() gives)" % i)
-    report = _json.loads(_detect_stages_json(_json.dumps(rows), scene))
+    try:
+        text = _json.dumps(rows, allow_nan=False)
+    except ValueError:
+        raise ValueError("rows hold NaN or an infinity, which metrics rows never do (read_metrics() gives "
+                         "none)") from None
+    report = _json.loads(_detect_stages_json(text, scene))
     for stage in report["stages"]:
         stage["value"] = _numpy.asarray([float("nan") if v is None else v for v in stage["value"]], dtype=float)
         stage["on"] = _numpy.asarray([c == "1" for c in stage["on"]], dtype=bool)

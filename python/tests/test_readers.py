@@ -86,6 +86,8 @@ def test_detect_stages():
         hns.detect_stages(rows, "nope")
     with pytest.raises(ValueError, match=r"rows\[0\] is not a metrics row"):
         hns.detect_stages([{}], "quadrant")
+    with pytest.raises(ValueError, match="NaN or an infinity"):
+        hns.detect_stages([{"iteration": 1, "agent_steps": 1, "x": float("nan")}], "quadrant")
     with pytest.raises(TypeError, match=r"rows\[0\] is a int"):
         hns.metrics_column([1, 2], "a")
 

@@ -487,6 +487,11 @@ std::string Trainer::initialize_from(const std::string& path) {
     }
     return "";
   });
+  if (cfg_.init_optimizer != 0 && st.exported) {
+    throw std::runtime_error("--init-from " + path +
+                             ": init_optimizer = 1 needs Adam's moments, and an exported policy has none; "
+                             "use the run's checkpoint.bin or init_optimizer = 0");
+  }
   // The policy's slices always; the value net's (with its return normaliser) when init_value is set; each
   // network's head (its final layer norm and output layer) unless init_heads is 0. Slices are matched by
   // name: one the checkpoint lacks (a site embedding) keeps its initialisation from the seed.
@@ -524,11 +529,6 @@ std::string Trainer::initialize_from(const std::string& path) {
     obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
     carried += cfg_.init_value != 0 ? ", observation and return normalisers" : ", observation normaliser";
   }
-  if (cfg_.init_optimizer != 0 && st.exported) {
-    throw std::runtime_error("--init-from " + path +
-                             ": init_optimizer = 1 needs Adam's moments, and an exported policy has none; "
-                             "use the run's checkpoint.bin or init_optimizer = 0");
-  }
   if (cfg_.init_optimizer != 0) {  // validate() makes sure both networks were carried
     for (const nn::ParamSlice& slice : layout.slices()) {
       const nn::ParamSlice* from = st.layout.find(slice.name);
@@ -549,6 +549,7 @@ uint64_t Trainer::export_policy(const std::string& checkpoint, const std::string
   cfg.envs = 1;
   cfg.threads = 1;
   cfg.minibatches = 1;
+  cfg.minibatch_chunks = 0;  // the run's may not fit one env
   cfg.precision = "fp32";
   const Trainer reader(cfg);
   const CheckpointState st = reader.read_checkpoint(checkpoint, [](const TrainConfig&) { return ""; });

@@ -20,6 +20,7 @@ std::unique_ptr<Policy> Policy::from_checkpoint(const std::string& path, uint64_
   cfg.envs = 1;  // the trainer only holds the networks here
   cfg.threads = 1;
   cfg.minibatches = 1;
+  cfg.minibatch_chunks = 0;  // the run's may not fit one env
   // Acting only: a bf16 run acts in bf16 where this CPU has it, else in fp32 (its float master weights are
   // the same; the actions may differ in rare near-ties). Training a run on (--resume) never changes its
   // precision.

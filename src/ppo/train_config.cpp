@@ -175,6 +175,26 @@ std::string json_string(const std::string& s) {
   return out + "\"";
 }
 
+// The offset of the first byte of `s` that does not start a well-formed UTF-8 sequence (none overlong, no
+// surrogate, nothing above U+10FFFF), or npos.
+size_t first_non_utf8(std::string_view s) {
+  for (size_t k = 0; k < s.size();) {
+    const auto c = static_cast<unsigned char>(s[k]);
+    const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
+    if (n == 0 || k + n > s.size()) return k;
+    uint32_t cp = n == 1 ? c : n == 2 ? (c & 0x1Fu) : n == 3 ? (c & 0x0Fu) : (c & 0x07u);
+    for (size_t j = 1; j < n; ++j) {
+      const auto t = static_cast<unsigned char>(s[k + j]);
+      if ((t >> 6) != 0x2) return k;
+      cp = (cp << 6) | (t & 0x3Fu);
+    }
+    const uint32_t least = n == 1 ? 0 : n == 2 ? 0x80 : n == 3 ? 0x800 : 0x10000;
+    if (cp < least || cp > 0x10FFFF || (cp >= 0xD800 && cp < 0xE000)) return k;
+    k += n;
+  }
+  return std::string_view::npos;
+}
+
 // A minimal reader for one flat JSON object: {"key": "string" | number | true | false, ...}.
 // What a value was in the JSON text.
 enum class JsonKind { kString, kNumber, kBoolean };
@@ -333,16 +353,9 @@ class FlatJsonReader {
   // JSON text is UTF-8: a byte sequence that is not (a damaged or binary file) is refused before anything is
   // read, so no message quotes it.
   void check_utf8() const {
-    for (size_t k = 0; k < s_.size();) {
-      const auto c = static_cast<unsigned char>(s_[k]);
-      const size_t n = c < 0x80 ? 1 : (c >> 5) == 0x6 ? 2 : (c >> 4) == 0xE ? 3 : (c >> 3) == 0x1E ? 4 : 0;
-      bool ok = n > 0 && k + n <= s_.size() && !(n == 2 && c < 0xC2);
-      for (size_t j = 1; ok && j < n; ++j) ok = (static_cast<unsigned char>(s_[k + j]) >> 6) == 0x2;
-      if (!ok) {
-        throw ConfigError(origin_ + ": not UTF-8 text (byte " + std::to_string(k) + ")");
-      }
-      k += n;
-    }
+    const size_t bad = first_non_utf8(s_);
+    if (bad != std::string_view::npos)
+      throw ConfigError(origin_ + ": not UTF-8 text (byte " + std::to_string(bad) + ")");
   }
   // A number in JSON's grammar (-? (0 | [1-9][0-9]*) (. [0-9]+)? ([eE] [+-]? [0-9]+)?), true or false.
   static bool json_number_or_literal(std::string_view v) {
@@ -613,6 +626,17 @@ void TrainConfig::validate() const {
   auto check = [](bool ok, const char* key, const auto& value, std::string_view allowed) {
     if (!ok) throw ConfigError(field_error(key, text_of(value), allowed));
   };
+  // config.json is JSON, which holds UTF-8 text only: a string the run could write but not read back (a path
+  // in another encoding) is refused before the run starts.
+  visit_fields(*this, [&](const char* name, const auto& field, bool) {
+    if constexpr (std::is_same_v<std::decay_t<decltype(field)>, std::string>) {
+      const size_t bad = first_non_utf8(field);
+      if (bad != std::string_view::npos) {
+        throw ConfigError(std::string(name) + ": byte " + std::to_string(bad) +
+                          " is not UTF-8 (config.json holds UTF-8 text only; rename the path)");
+      }
+    }
+  });
   const physics::WorldConfig w = world();  // throws for an unknown scene
   try {
     (void)nn::net_preset(model);

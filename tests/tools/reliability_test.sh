@@ -261,6 +261,21 @@ expect_fail 2 "raw control character \(byte 0x1b\) in a string" train --config "
 printf '{"scene": "lock\377box"}' >"$tmp/latin.json"
 expect_fail 2 "latin.json: not UTF-8 text \(byte 15\)" train --config "$tmp/latin.json" --out "$tmp/x3"
 expect_fail 2 "horizon = '1000001' is invalid: must be in \[0, 100000\]" train --set horizon=1000001 --out "$tmp/x3"
+# A run with minibatch_chunks (more than one env holds) exports and plays: acting rebuilds its config for one
+# env. A path that is not UTF-8 is refused at start (config.json could not hold it, and the run would not
+# resume).
+if train_small --iterations 1 --set minibatch_chunks=16 --out "$tmp/mbc" >"$tmp/log" 2>&1 &&
+   "$hns" export "$tmp/mbc" --out "$tmp/mbc.hnspolicy" >>"$tmp/log" 2>&1 &&
+   "$hns" play --checkpoint "$tmp/mbc.hnspolicy" --out "$tmp/mbc.traj" >>"$tmp/log" 2>&1 &&
+   "$hns" play --checkpoint "$tmp/mbc/checkpoint.bin" --out "$tmp/mbc.traj" >>"$tmp/log" 2>&1; then
+  ok
+else
+  fail "a minibatch_chunks run does not export or play: $(head -c 600 "$tmp/log")"
+fi
+cp "$tmp/run/checkpoint.bin" "$tmp/caf"$'\xe9'".bin"
+expect_fail 2 "init_from: byte [0-9]+ is not UTF-8" train --config "$tmp/train.json" --init-from "$tmp/caf"$'\xe9'".bin" \
+  --out "$tmp/x4"
+[ -e "$tmp/x4" ] && fail "a refused non-UTF-8 --init-from created its run folder"
 expect_fail 2 "lr = 'true' is invalid" train --set lr=true --out "$tmp/x3"
 expect_fail 2 "epochs = 'false' is invalid" train --set epochs=false --out "$tmp/x3"
 expect_fail 2 "--speed: 'nan' is not a decimal number" replay "$tmp/q.traj" --gif "$tmp/x.gif" --speed nan
