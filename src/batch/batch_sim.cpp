@@ -38,7 +38,8 @@ int max_walls(const physics::SceneConfig& scene) {
   }
 }
 
-// The lidar fan (docs/game.md §4.2, §14.6): world-fixed horizontal directions 12° apart from +x, each 6 m long.
+// The lidar fan (docs/game.md §4.2, §14.6): world-fixed horizontal directions 12° apart from +x, each 6 m
+// long.
 struct LidarFan {
   float dx[Layout::kLidar], dy[Layout::kLidar], dz[Layout::kLidar], length[Layout::kLidar];
   LidarFan() {
@@ -56,8 +57,8 @@ const float kCosHalfCone = float(std::cos(physics::kVisionHalfAngle));
 // Lines of sight one agent casts at most (other agents, boxes, ramps); the scene maxima keep far below it.
 constexpr int kMaxSightLines = 128;
 
-// prep_obs after t steps of an episode with `prep` preparation steps (docs/game.md §4.3): t / (prep + 1e-5), which
-// first reads 1 after step prep + 1. Rounded to float that quotient would read 1 a step early once prep
+// prep_obs after t steps of an episode with `prep` preparation steps (docs/game.md §4.3): t / (prep + 1e-5),
+// which first reads 1 after step prep + 1. Rounded to float that quotient would read 1 a step early once prep
 // exceeds a few hundred, so it is capped just below 1 until then.
 float prep_observation(int t, int prep) {
   if (t > prep) return 1.0f;
@@ -562,11 +563,11 @@ ShapesView BatchSim::shapes(int env) const {
   return v;
 }
 
-// Vision (docs/game.md §4.1): a target is seen when its sight point lies in the viewer's cone and the first shape on
-// the segment from the viewer's centre to that point is the target itself (an agent's arms count as the
-// agent). Sight points are centres, a ramp's its centroid (physics::ramp_sight_point): all lie inside their
-// solid, so the segment always enters the target well before its end. Each viewer's lines of sight to the
-// targets in its cone form one ray fan.
+// Vision (docs/game.md §4.1): a target is seen when its sight point lies in the viewer's cone and the first
+// shape on the segment from the viewer's centre to that point is the target itself (an agent's arms count as
+// the agent). Sight points are centres, a ramp's its centroid (physics::ramp_sight_point): all lie inside
+// their solid, so the segment always enters the target well before its end. Each viewer's lines of sight to
+// the targets in its cone form one ray fan.
 void BatchSim::vision_env(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -627,8 +628,8 @@ void BatchSim::vision_env(int env) {
       physics::ramp_sight_point(p[0], p[1], p[2], ramp_rot[2 * r], ramp_rot[2 * r + 1], centroid);
       aim(centroid, shapes.wedge_id(r), &vis_ramps[a * L.max_ramps + r]);
     }
-    // A food item is a point, not a shape: seen when nothing lies on the segment to it (docs/game.md §4.1's rule for
-    // site targets), so the shape that must be hit first is none (-1).
+    // A food item is a point, not a shape: seen when nothing lies on the segment to it (docs/game.md §4.1's
+    // rule for site targets), so the shape that must be hit first is none (-1).
     for (int f = 0; f < L.max_food; ++f) {
       if (food_exists[f] != 0) aim(food_pos + 3 * f, -1, &vis_food[a * L.max_food + f]);
     }
@@ -647,8 +648,8 @@ void BatchSim::vision_env(int env) {
   }
 }
 
-// Lidar (docs/game.md §4.2, §14.6): per agent one fan of 30 world-fixed horizontal rays, the first hit within 6 m,
-// else 6. Empty agent slots read 0.
+// Lidar (docs/game.md §4.2, §14.6): per agent one fan of 30 world-fixed horizontal rays, the first hit within
+// 6 m, else 6. Empty agent slots read 0.
 void BatchSim::lidar_env(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -690,9 +691,9 @@ void BatchSim::rewards_env(int env) {
     return p[0] < rect[0] || p[0] > rect[2] || p[1] < rect[1] || p[1] > rect[3];
   };
 
-  // Joint zero-sum (docs/game.md §5.1): every hider gets -1 if any hider is seen by any seeker, else +1; seekers the
-  // opposite. Out of bounds replaces an agent's reward with -10; in the quadrant game any box or ramp out of
-  // bounds costs everyone -10 (§5.2). Everything is 0 during the preparation phase.
+  // Joint zero-sum (docs/game.md §5.1): every hider gets -1 if any hider is seen by any seeker, else +1;
+  // seekers the opposite. Out of bounds replaces an agent's reward with -10; in the quadrant game any box or
+  // ramp out of bounds costs everyone -10 (§5.2). Everything is 0 during the preparation phase.
   bool any_seen = false;
   for (int sk = 0; sk < n; ++sk) {
     if (hider[sk] != 0) continue;
@@ -758,12 +759,12 @@ void BatchSim::rewards_env(int env) {
   s.done[env] = world.done() ? 1 : 0;
 }
 
-// The shelter reward's rays (docs/game.md §9.3): 100 start points evenly spaced around the square [0.202, 5.798]² on
-// the floor, 25 per side, each side's from its first corner (counter-clockwise from (0.202, 0.202)) up to
-// but not including the next, aimed at the cylinder's centre. A ray
-// reaches the cylinder when nothing else lies on the segment from its start to the cylinder; the segments
-// are cast the other way, as one fan from the centre that skips the cylinder (nothing else can be inside
-// it), so the 100 rays share the vector kernel's blocks.
+// The shelter reward's rays (docs/game.md §9.3): 100 start points evenly spaced around the square
+// [0.202, 5.798]² on the floor, 25 per side, each side's from its first corner (counter-clockwise from
+// (0.202, 0.202)) up to but not including the next, aimed at the cylinder's centre. A ray reaches the
+// cylinder when nothing else lies on the segment from its start to the cylinder; the segments are cast the
+// other way, as one fan from the centre that skips the cylinder (nothing else can be inside it), so the 100
+// rays share the vector kernel's blocks.
 namespace {
 constexpr int kShelterRaysPerSide = 25;
 constexpr int kShelterRays = 4 * kShelterRaysPerSide;
@@ -800,12 +801,12 @@ void BatchSim::shelter_rewards_env(int env, float* reward) {
   std::fill_n(reward, layout_.max_agents, -kShelterRayCost * float(shelter_rays_reaching(env)));
 }
 
-// Blueprint construction (docs/game.md §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2,
-// 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners are
-// (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box corner
-// of the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean. Completion:
-// every site has a box centre within 0.1 m of its centre and every site corner a box corner within 0.1 m;
-// it pays 3 per site (on top of that step's dense reward) and sets task_complete.
+// Blueprint construction (docs/game.md §9.1). Box corners are the middles of a box's vertical edges, (±sx/2,
+// ±sy/2, 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners
+// are (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box
+// corner of the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean.
+// Completion: every site has a box centre within 0.1 m of its centre and every site corner a box corner
+// within 0.1 m; it pays 3 per site (on top of that step's dense reward) and sets task_complete.
 constexpr double kBlueprintAlpha = -1.5;
 constexpr double kBlueprintDenseScale = 0.05;
 constexpr double kBlueprintRadius = 0.1;      // m
@@ -962,9 +963,9 @@ void BatchSim::food_env(int env, float* reward, bool prep) {
   }
 }
 
-// The target of agent 0 (docs/game.md §9.2): the nearest unlocked box, or in kSequentialLock the first unlocked one
-// in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and none otherwise
-// (kTargetNone). task_dist: the 2-D distance to it.
+// The target of agent 0 (docs/game.md §9.2): the nearest unlocked box, or in kSequentialLock the first
+// unlocked one in index order; once every box is locked, the spawn point in kLockReturn (kTargetSpawn) and
+// none otherwise (kTargetNone). task_dist: the 2-D distance to it.
 void BatchSim::lockbox_retarget(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -988,8 +989,8 @@ void BatchSim::lockbox_retarget(int env) {
   s.task_dist[env] = best_d;
 }
 
-// docs/game.md §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked box,
-// -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance to the
+// docs/game.md §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked
+// box, -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance to the
 // target, +scale x the old distance when the target box gets locked, -scale x the new target's distance when
 // a box gets unlocked; +success_reward every step the task is complete: all boxes locked (and in kLockReturn
 // agent 0 within return_threshold of its spawn).
@@ -1218,8 +1219,8 @@ void BatchSim::end_episode_env(int env, bool discarded) {
   s.done[env] = 1;
 }
 
-// Observation tensors of every agent of the env (docs/game.md §4.3-§4.6, §14.1). Other agents come in circulant
-// order i-1, i-2, ... (mod n); boxes and ramps in index order; padding slots are zero with mask 0.
+// Observation tensors of every agent of the env (docs/game.md §4.3-§4.6, §14.1). Other agents come in
+// circulant order i-1, i-2, ... (mod n); boxes and ramps in index order; padding slots are zero with mask 0.
 void BatchSim::observe_env(int env) {
   const Layout& L = layout_;
   BatchState& s = state_;
@@ -1320,7 +1321,8 @@ void BatchSim::observe_env(int env) {
       mask_ramps[a * R + r] = vis_ramps[a * R + r];
       value_mask_ramps[a * R + r] = 1;
     }
-    // Construction sites (docs/game.md §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always visible.
+    // Construction sites (docs/game.md §9.1): centre, then the corners (-,-), (+,-), (+,+), (-,+); always
+    // visible.
     for (int c = 0; c < CS; ++c) {
       const size_t i = size_t(env) * CS + c;
       if (s.site_exists[i] == 0) continue;
@@ -1337,8 +1339,8 @@ void BatchSim::observe_env(int env) {
       mask_sites[a * C + c] = 1;
       value_mask_sites[a * C + c] = 1;
     }
-    // Food (docs/game.md §5.4): position and health, seen through vision; a hider may eat what it sees while no
-    // hider is seen (unless eat_when_caught), which the next step's eating reads.
+    // Food (docs/game.md §5.4): position and health, seen through vision; a hider may eat what it sees while
+    // no hider is seen (unless eat_when_caught), which the next step's eating reads.
     for (int f = 0; f < F; ++f) {
       const size_t i = size_t(env) * F + f;
       if (s.food_exists[i] == 0) continue;

@@ -41,8 +41,9 @@ struct BatchConfig {
 };
 
 // Slots of the stat_prep field: what the episode statistics read from the mirror when the preparation phase
-// ends (and again when the episode ends): docs/game.md §7's max box move (m), boxes locked, max ramp move (m), ramps
-// locked, then the doors sealed by locked boxes and whether a ramp is in the quadrant room (1 or 0).
+// ends (and again when the episode ends): docs/game.md §7's max box move (m), boxes locked, max ramp move
+// (m), ramps locked, then the doors sealed by locked boxes and whether a ramp is in the quadrant room (1 or
+// 0).
 enum PrepStat {
   kBoxMove,
   kBoxLock,
@@ -111,7 +112,7 @@ struct Layout {
 // Every per-env field of the batch: X(type, name, elements per env, doc). Env index outermost; one
 // aligned buffer per field; slots beyond an episode's counts are zero and masked out.
 #define HNS_BATCH_FIELDS(X)                                                                                 \
-  /* Bodies, true centres (docs/game.md §14.1). */                                                                 \
+  /* Bodies, true centres (docs/game.md §14.1). */                                                         \
   X(float, agent_pos, L.max_agents * 3, "agent centre, m (envs x A x 3)")                                   \
   X(float, agent_rot, L.max_agents * 2, "agent yaw as (cos, sin) (envs x A x 2)")                           \
   X(float, agent_vel, L.max_agents * 3, "agent velocity, m/s (envs x A x 3)")                               \
@@ -165,31 +166,31 @@ struct Layout {
   X(float, shape_cyl_r, L.shape_cylinders, "radius, m")                                                     \
   X(float, shape_cyl_h, L.shape_cylinders, "height, m (it stands on the floor)")                            \
   X(int32_t, num_walls, 1, "walls of this episode's scene (envs)")                                          \
-  /* Perception (docs/game.md §4.1, §4.2). */                                                                     \
+  /* Perception (docs/game.md §4.1, §4.2). */                                                             \
   X(uint8_t, vis_agents, L.max_agents* L.max_agents, "agent i sees agent j, diagonal 1 (envs x A x A)")     \
   X(uint8_t, vis_boxes, L.max_agents* L.max_boxes, "agent sees box (envs x A x B)")                         \
   X(uint8_t, vis_ramps, L.max_agents* L.max_ramps, "agent sees ramp (envs x A x R)")                        \
   X(uint8_t, vis_food, L.max_agents* L.max_food, "agent sees food item (envs x A x F)")                     \
   X(float, lidar, L.max_agents* Layout::kLidar, "lidar distance, m, 6 = nothing (envs x A x 30)")           \
-  /* Step outputs (docs/game.md §5). */                                                                            \
+  /* Step outputs (docs/game.md §5). */                                                                    \
   X(float, reward, L.max_agents, "reward of the last step (envs x A)")                                      \
   X(uint8_t, done, 1, "1 if the last step ended the episode; the obs is then the new episode's first")      \
   X(int32_t, step_count, 1, "env steps taken in the current episode (envs)")                                \
   X(int32_t, episode, 1, "episode number of the env (envs)")                                                \
-  /* Episode statistics (docs/game.md §7). */                                                                      \
+  /* Episode statistics (docs/game.md §7). */                                                              \
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                         \
   X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 8)")             \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
-  /* Box-locking tasks (WorldConfig::is_lock_task(), docs/game.md §9.2). */                                        \
+  /* Box-locking tasks (WorldConfig::is_lock_task(), docs/game.md §9.2). */                                \
   X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
   X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                 \
   X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")     \
   X(uint8_t, task_locked, L.max_boxes, "box locked at the last step (envs x B)")                            \
   X(uint8_t, task_complete, 1, "blueprint: 1 from the completing step on; later steps are absorbed (envs)") \
-  /* Observations per agent (docs/game.md §4.3-§4.6 with §14.1). */                                              \
+  /* Observations per agent (docs/game.md §4.3-§4.6 with §14.1). */                                      \
   X(float, obs_self, L.max_agents* Layout::kSelfFeatures, "own features (envs x A x 11)")                   \
   X(float, obs_agents, L.max_agents* L.others* Layout::kAgentFeatures,                                      \
     "other agents in circulant order (envs x A x A-1 x 11)")                                                \
@@ -224,8 +225,8 @@ struct BatchState {
   }
 };
 
-// Per-episode statistics after the returns, in this order: X(name, doc). docs/game.md §7's eight, then the direct
-// stage detectors (docs/training.md "Stages"). Each is a float of EpisodeStats, the mean over an
+// Per-episode statistics after the returns, in this order: X(name, doc). docs/game.md §7's eight, then the
+// direct stage detectors (docs/training.md "Stages"). Each is a float of EpisodeStats, the mean over an
 // iteration's episodes in metrics.jsonl, and a key of the Python module's finished episodes.
 #define HNS_EPISODE_STATS(X)                                                                                \
   X(max_box_move_prep, "m, largest box displacement from its spawn at the end of the preparation phase")    \
@@ -344,8 +345,8 @@ class BatchSim {
   // Re-reads env e's bodies from its world and recomputes vision, lidar and observations exactly as a step
   // does after physics (rewards, statistics and counters are left alone).
   void resync(int env);
-  // Shelter (docs/game.md §9.3): how many of the 100 rays from the arena's edges first hit env e's cylinder now (0
-  // without one); the step's reward is -0.001 per ray.
+  // Shelter (docs/game.md §9.3): how many of the 100 rays from the arena's edges first hit env e's cylinder
+  // now (0 without one); the step's reward is -0.001 per ray.
   int shelter_rays_reaching(int env) const;
 
  private:
@@ -362,7 +363,8 @@ class BatchSim {
   void lockbox_retarget(int env);                      // agent 0's target and its distance
   void shelter_rewards_env(int env, float* reward);    // docs/game.md §9.3
   void blueprint_rewards_env(int env, float* reward);  // docs/game.md §9.1; sets task_complete
-  // The food variants (docs/game.md §5.4): eating, health and respawn after a step; adds each agent's food reward.
+  // The food variants (docs/game.md §5.4): eating, health and respawn after a step; adds each agent's food
+  // reward.
   void food_env(int env, float* reward, bool prep);
   void pose_counting_env(int env);  // object counting's script (pinned agent, sliding boxes)
   void observe_env(int env);

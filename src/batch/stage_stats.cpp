@@ -121,8 +121,8 @@ bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes) {
 }
 
 Rect quadrant_room() {
-  // Room walls on grid row and column kQuadrantSize (docs/game.md §2.3), outer walls on 0 and 29; the interior runs
-  // from one wall box's face to the other's.
+  // Room walls on grid row and column kQuadrantSize (docs/game.md §2.3), outer walls on 0 and 29; the
+  // interior runs from one wall box's face to the other's.
   constexpr int kRoomWall = physics::kQuadrantSize, kLast = physics::kGridSize - 1;
   const float h = float(0.5 * physics::kWallThickness);
   return Rect{float((kRoomWall + 0.5) * kCellSize) + h, float(0.5 * kCellSize) + h,

@@ -2,10 +2,10 @@
 // value slices "value/..."), batched inference for the rollout, and the deterministic parallel forward +
 // backward of a training minibatch.
 //
-// Determinism (docs/design.md "Determinism"): work is split into chunks whose sizes come from ParallelConfig, never from the
-// thread count. Inference chunks are independent. Training chunks are assigned to a fixed number of gradient
-// groups; each group sums its chunks' gradients in chunk order into its own buffer, and the groups are summed
-// in group order. So results are bit-identical for any number of TBB threads.
+// Determinism (docs/design.md "Determinism"): work is split into chunks whose sizes come from ParallelConfig,
+// never from the thread count. Inference chunks are independent. Training chunks are assigned to a fixed
+// number of gradient groups; each group sums its chunks' gradients in chunk order into its own buffer, and
+// the groups are summed in group order. So results are bit-identical for any number of TBB threads.
 //
 // Masks (docs/game.md §4.6, §10.3): the policy sees entities through the visibility masks (agents_seen,
 // boxes_seen, ramps_seen, sites_seen); the omniscient value net uses the presence masks (agents_present,

@@ -1,4 +1,5 @@
-// The hide-and-seek policy and value networks (docs/game.md §10.3 variant A; same structure, separate weights):
+// The hide-and-seek policy and value networks (docs/game.md §10.3 variant A; same structure, separate
+// weights):
 //
 //   self [S] ---------------------------------------------.
 //   lidar [L] -> circ conv (K filters, kernel 3, relu) -> main = [self, conv] (S + L*K)

@@ -15,7 +15,8 @@ enum class Activation : uint8_t { kNone, kRelu };
 inline constexpr float kObsClip = 5.0f;
 // Layer norm epsilon (tf.contrib.layers.layer_norm).
 inline constexpr float kLayerNormEps = 1e-12f;
-// Masked softmax: logits of masked keys are lowered by this, and the sum gets this added (docs/game.md §10.2).
+// Masked softmax: logits of masked keys are lowered by this, and the sum gets this added (docs/game.md
+// §10.2).
 inline constexpr float kMaskedLogitPenalty = 1e10f;
 inline constexpr float kSoftmaxSumEps = 1e-10f;
 // BasicLSTMCell forget bias.

@@ -1,5 +1,6 @@
 // Layers with forward and backward passes over batches of rows ([rows, features]) and of entity sets
-// ([rows, entities, features], stored as [rows * entities, features]). docs/game.md §10.2 gives the semantics.
+// ([rows, entities, features], stored as [rows * entities, features]). docs/game.md §10.2 gives the
+// semantics.
 //
 // Conventions shared by every layer:
 // - A layer keeps only sizes and offsets into the flat parameter buffer (nn/params.hpp). forward() takes the
@@ -257,11 +258,11 @@ void masked_mean_pool(CMat x, const float* mask, int entities, Mat out);
 // dx[r, e] = mask[r, e] / (sum mask + 1e-5) * dout[r] (written, zero for masked entities).
 void masked_mean_pool_backward(CMat dout, const float* mask, int entities, Mat dx);
 
-// BasicLSTMCell (docs/game.md §10.2) over sequences: rows are ordered sequence-major, row = b * steps + t, for
-// `sequences` sequences of `steps` steps. W [in + units, 4 units] (Xavier; rows [0, in) multiply x, the rest
-// h), b [4 units] (zeros); gate order i, j, f, o; forget bias 1. The state (c, h) is carried across steps,
-// zeroed before any step whose reset flag is set, and backprop runs through the whole chunk of steps. State
-// tensors are [sequences, 2 * units]: c in [0, units), h in [units, 2 units).
+// BasicLSTMCell (docs/game.md §10.2) over sequences: rows are ordered sequence-major, row = b * steps + t,
+// for `sequences` sequences of `steps` steps. W [in + units, 4 units] (Xavier; rows [0, in) multiply x, the
+// rest h), b [4 units] (zeros); gate order i, j, f, o; forget bias 1. The state (c, h) is carried across
+// steps, zeroed before any step whose reset flag is set, and backprop runs through the whole chunk of steps.
+// State tensors are [sequences, 2 * units]: c in [0, units), h in [units, 2 units).
 class Lstm {
  public:
   // W_h packed for the forward's recurrent product (w_h) and W_h^T for the backward's (w_h_t).

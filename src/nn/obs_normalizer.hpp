@@ -1,5 +1,5 @@
-// Running observation statistics (docs/game.md §10.2 EMAMeanStd): per-feature debiased EMA of the mean and of the
-// mean square, beta 0.99999, one update per batch; std = sqrt(max(E[x^2] - mean^2, 1e-2)). The networks
+// Running observation statistics (docs/game.md §10.2 EMAMeanStd): per-feature debiased EMA of the mean and of
+// the mean square, beta 0.99999, one update per batch; std = sqrt(max(E[x^2] - mean^2, 1e-2)). The networks
 // normalise with x_hat = clip((x - mean) / std, -5, 5) in a fused SIMD kernel (kernels::normalize_obs),
 // reading the float mean and 1/std arrays of ObsNormView.
 //

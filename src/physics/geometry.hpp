@@ -12,15 +12,15 @@ inline constexpr double kVisionHalfAngle = 3.0 * 3.14159265358979323846 / 8.0;  
 inline constexpr int kLidarRays = 30;       // world-fixed, angle 2πk/30 from +x
 inline constexpr double kLidarRange = 6.0;  // m; no hit or a farther hit reads 6 (§14.6)
 inline constexpr double kRampHalf = 0.25;   // m, half extent of the ramp's bounding box
-// The ramp's volume centroid in its bounding-box frame (docs/game.md §1.2): the ODE body origin and the point lines
-// of sight aim at. It lies inside the solid, (1/6)/√2 ≈ 0.118 m from the slope, its nearest face.
+// The ramp's volume centroid in its bounding-box frame (docs/game.md §1.2): the ODE body origin and the point
+// lines of sight aim at. It lies inside the solid, (1/6)/√2 ≈ 0.118 m from the slope, its nearest face.
 inline constexpr double kRampCentroidY = -1.0 / 12.0;  // m
 inline constexpr double kRampCentroidZ = -1.0 / 12.0;  // m
 // Half extents of the ramp's grab and lock reach cuboid about its bounding-box centre, along the ramp's body
 // axes (docs/game.md §3.3: the original's mesh geom_size).
 inline constexpr double kRampReachHalf[3] = {0.2357, 0.25, 0.3536};  // m
-// An agent's two massless arm spheres on its front (-y) side, body frame (docs/game.md §1.2). They collide, occlude
-// and are hit by lidar as part of the agent.
+// An agent's two massless arm spheres on its front (-y) side, body frame (docs/game.md §1.2). They collide,
+// occlude and are hit by lidar as part of the agent.
 inline constexpr double kArmRadius = 0.05;                                                   // m
 inline constexpr double kArmOffset[2][3] = {{-0.13, -0.075, -0.05}, {0.13, -0.075, -0.05}};  // m
 // A ball about an agent's centre that holds its body and both arms (|kArmOffset| + kArmRadius = 0.2082 m).

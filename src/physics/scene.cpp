@@ -65,9 +65,9 @@ class Grid {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-// Walls → physical boxes (docs/game.md §1.3): from the centre of p1 to the centre of p2, shortened by half the wall
-// thickness at each end, centred on the cell-centre line. (Pieces of one cell, which would have no physical
-// length, are never made.)
+// Walls → physical boxes (docs/game.md §1.3): from the centre of p1 to the centre of p2, shortened by half
+// the wall thickness at each end, centred on the cell-centre line. (Pieces of one cell, which would have no
+// physical length, are never made.)
 void add_wall_box(const WallCells& w, std::vector<StaticBox>& boxes) {
   const int cells_x = std::abs(w.x2 - w.x1), cells_y = std::abs(w.y2 - w.y1);
   const double length = (cells_x + cells_y) * kCellSize - kWallThickness;
@@ -275,10 +275,10 @@ class RoomBuilder {
 };
 
 // ---------------------------------------------------------------------------------------------------------------
-// var_tri (docs/game.md §9.2): a full-length wall at cell s1 = int(30 U(0.4, 0.6)), vertical or horizontal with p =
-// 0.5, and a perpendicular wall at cell s2 = int(30 U(0.4, 0.6)) from it to the outer wall on its low or high
-// side with p = 0.5. No doors: three closed rooms, about a quarter, a quarter and a half of the arena.
-// Appends the two walls and the rooms' free cells (the two quarter rooms first, then the half).
+// var_tri (docs/game.md §9.2): a full-length wall at cell s1 = int(30 U(0.4, 0.6)), vertical or horizontal
+// with p = 0.5, and a perpendicular wall at cell s2 = int(30 U(0.4, 0.6)) from it to the outer wall on its
+// low or high side with p = 0.5. No doors: three closed rooms, about a quarter, a quarter and a half of the
+// arena. Appends the two walls and the rooms' free cells (the two quarter rooms first, then the half).
 void var_tri_walls(Rng& rng, std::vector<WallCells>& walls, std::vector<CellRect>& rooms) {
   constexpr int kLast = kGridSize - 1;  // the outer walls' row and column
   const int s1 = static_cast<int>(kGridSize * rng.uniform(0.4, 0.6));
@@ -314,8 +314,10 @@ enum class Placement : uint8_t {
   kMiddle,
   kSpawnQuarter
 };
-constexpr double kMiddleFraction = 0.7;       // shelter's cylinder: uniform_placement_middle(0.7)
-constexpr double kSiteMiddleFraction = 0.85;  // blueprint's sites: uniform_away_from_walls (docs/game.md §9.1)
+// Shelter's cylinder: uniform_placement_middle(0.7); blueprint's sites: uniform_away_from_walls (docs/game.md
+// §9.1).
+constexpr double kMiddleFraction = 0.7;
+constexpr double kSiteMiddleFraction = 0.85;
 
 struct Cell {
   int i = 0, j = 0;
@@ -486,7 +488,8 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
       break;
     case Layout::kQuadrant: {
-      // docs/game.md §2.3: a vertical and a horizontal room wall; with p_door_dropout one of them has no door.
+      // docs/game.md §2.3: a vertical and a horizontal room wall; with p_door_dropout one of them has no
+      // door.
       out.walls.insert(out.walls.end(), kOuterWalls.begin(), kOuterWalls.end());
       const std::array<WallCells, 2> room = {{
           {kQuadrantSize, 0, kQuadrantSize, kQuadrantSize, false},
@@ -527,8 +530,8 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       break;
   }
 
-  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (docs/game.md §2.4,
-  // add_walls_to_grid after the drop).
+  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (docs/game.md
+  // §2.4, add_walls_to_grid after the drop).
   if (!out.outer_walls) {
     out.walls.erase(
         std::remove_if(out.walls.begin(), out.walls.end(), [](const WallCells& w) { return w.outer; }),
@@ -590,7 +593,8 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
     out.sites.push_back(spawn);
   }
 
-  // Agents (docs/game.md §2.5): hiders, then seekers; after the first of a team, near it when together_radius > 0.
+  // Agents (docs/game.md §2.5): hiders, then seekers; after the first of a team, near it when together_radius
+  // > 0.
   for (int a = 0; a < n.hiders + n.seekers; ++a) {
     const bool hider = a < n.hiders;
     const int in_team = hider ? a : a - n.hiders;
@@ -742,8 +746,9 @@ SceneConfig SceneConfig::quadrant() {
   return c;
 }
 
-// The paper's full game (docs/game.md §14.5): 1-3 v 1-3, 3-9 boxes of which at least 3 elongated, 2 ramps, 1-4 random
-// rooms, outer walls kept half of the time, team mates spawn within 0.5 m (3 cells) of their first member.
+// The paper's full game (docs/game.md §14.5): 1-3 v 1-3, 3-9 boxes of which at least 3 elongated, 2 ramps,
+// 1-4 random rooms, outer walls kept half of the time, team mates spawn within 0.5 m (3 cells) of their first
+// member.
 SceneConfig SceneConfig::full() {
   SceneConfig c;
   c.layout = Layout::kRandomWalls;
