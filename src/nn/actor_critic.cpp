@@ -1,5 +1,7 @@
 #include "nn/actor_critic.hpp"
 
+#include "nn/simd.hpp"
+
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
 
@@ -205,11 +207,17 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
 
 void ActorCritic::sum_groups(size_t begin, size_t end, const float* before, float* out) const {
   const int groups = static_cast<int>(group_chunks_.size()) - 1;
-  for (size_t i = begin; i < end; ++i) {
-    float s = before != nullptr ? before[i - begin] + group_grads_[0][i] : group_grads_[0][i];
-    for (int g = 1; g < groups; ++g) s += group_grads_[g][i];
-    out[i] = s;
-  }
+  // Each element in group order (before, group 0, group 1, ...), so any split of the range gives the same
+  // bits; vectors of elements at a time.
+  const float* first = group_grads_[0].data() + begin;
+  float* dst = out + begin;
+  simd::for_each<true>(static_cast<int>(end - begin), [&](auto tag, int i) {
+    using F = decltype(tag);
+    F s = simd::load<F>(first + i);
+    if (before != nullptr) s = simd::load<F>(before + i) + s;
+    for (int g = 1; g < groups; ++g) s = s + simd::load<F>(group_grads_[g].data() + begin + i);
+    simd::store(dst + i, s);
+  });
 }
 
 void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,

@@ -6,6 +6,7 @@
 
 #include <immintrin.h>
 
+#include <algorithm>
 #include <atomic>
 #include <bit>
 #include <cmath>
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 #include "nn/bf16_amx.hpp"
 
@@ -192,11 +194,30 @@ HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, 
     }
     return;
   }
+  if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
+  if (transpose && col_map == nullptr) {
+    // b's rows are w's columns: kSweepPairs pairs (a cache line of w's row) per sweep down w's rows, so
+    // each line of w is read once rather than once per pair.
+    constexpr int kSweepPairs = 8;
+    thread_local std::vector<float> block;
+    if (block.size() < size_t(2 * kSweepPairs) * kMaxGatherCols)
+      block.resize(size_t(2 * kSweepPairs) * kMaxGatherCols);
+    for (int p0 = 0; p0 < k2; p0 += kSweepPairs) {
+      const int cols = std::min(2 * kSweepPairs, k - 2 * p0);  // w's columns in this sweep
+      for (int j = 0; j < n; ++j) {
+        const float* src = w + j * ldw + 2 * p0;
+        for (int c = 0; c < cols; ++c) block[size_t(c) * n + j] = src[c];
+      }
+      for (int c = 0; c < cols; c += 2)
+        pack_pair_rows(&block[size_t(c) * n], c + 1 < cols ? &block[size_t(c + 1) * n] : nullptr, n, kp,
+                       p0 + c / 2, out);
+    }
+    return;
+  }
   // General case: gather each row pair of b into two float rows first (b[i, j] = w[i, map(j)], or
   // w[j, map(i)] transposed).
   alignas(64) float row0[kMaxGatherCols];
   alignas(64) float row1[kMaxGatherCols];
-  if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
   for (int p = 0; p < k2; ++p) {
     const int i0 = 2 * p, i1 = 2 * p + 1;
     if (transpose) {

@@ -349,7 +349,7 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   d_p = arena.take(static_cast<size_t>(entities) * entities);
   const size_t ld = attention_key_stride(entities);
   kt = arena.take(dh * ld);
-  scores = arena.take(ld);
+  scores = arena.take(static_cast<size_t>(entities) * ld);
 }
 
 SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int width, int heads, bool pre_ln,
@@ -378,23 +378,52 @@ double SelfAttention::flops(double entity_rows, double pairs) const {
 
 namespace {
 
-// out[j] = sum_c a[c] * bt[c * ld + j] for j < ld (a whole number of vectors; bt's columns past the keys
-// are 0): one query against every key of a head at once, the keys transposed to [dh, ld].
-void query_times_keys(const float* a, int len, const float* bt, int ld, float* out) {
+// out[i * ld + j] = sum_c a_i[c] * bt[c * ld + j] for i < count and j < ld (a whole number of vectors; bt's
+// columns past the keys are 0), query i at a + i * a_stride: every query of a head against every key at
+// once, the keys transposed to [dh, ld]. Each element is one fma chain in c order; the queries go in groups
+// of kGroup that share each load of bt, so their chains overlap instead of waiting on one another.
+template <int kGroup>
+void queries_times_keys_group(const float* a, ptrdiff_t a_stride, int len, const float* bt, int ld,
+                              float* out) {
   using simd::Batch;
   for (int j = 0; j < ld; j += simd::kWidth) {
-    Batch acc(0.0f);
-    for (int c = 0; c < len; ++c) acc = simd::fma(Batch(a[c]), simd::load<Batch>(bt + c * ld + j), acc);
-    simd::store(out + j, acc);
+    Batch acc[kGroup];
+    for (int q = 0; q < kGroup; ++q) acc[q] = Batch(0.0f);
+    for (int c = 0; c < len; ++c) {
+      const Batch k = simd::load<Batch>(bt + c * ld + j);
+      for (int q = 0; q < kGroup; ++q) acc[q] = simd::fma(Batch(a[q * a_stride + c]), k, acc[q]);
+    }
+    for (int q = 0; q < kGroup; ++q) simd::store(out + q * ld + j, acc[q]);
   }
 }
 
-// bt[c * ld + j] = rows[j * row_stride + c] for j < m, c < len, and 0 for m <= j < ld.
+void queries_times_keys(const float* a, ptrdiff_t a_stride, int count, int len, const float* bt, int ld,
+                        float* out) {
+  constexpr int kGroup = 4;
+  int i = 0;
+  for (; i + kGroup <= count; i += kGroup)
+    queries_times_keys_group<kGroup>(a + i * a_stride, a_stride, len, bt, ld, out + i * ld);
+  switch (count - i) {
+    case 3:
+      return queries_times_keys_group<3>(a + i * a_stride, a_stride, len, bt, ld, out + i * ld);
+    case 2:
+      return queries_times_keys_group<2>(a + i * a_stride, a_stride, len, bt, ld, out + i * ld);
+    case 1:
+      return queries_times_keys_group<1>(a + i * a_stride, a_stride, len, bt, ld, out + i * ld);
+    default:
+      return;
+  }
+}
+
+// bt[c * ld + j] = rows[j * row_stride + c] for j < m, c < len. Columns m <= j < ld keep what they hold
+// (zeros from the pass's start, or an earlier row's keys): they only fill the last vector's lanes, whose
+// scores nobody reads, and every lane of a vector product is computed apart from the others.
+// Key by key: the inner loop's trip count is the head width, the same for every row (a loop over a row's
+// few keys inside would end at another count each row, and its branch would miss once per element of len).
 void transpose_keys(const float* rows, ptrdiff_t row_stride, int m, int len, int ld, float* bt) {
-  for (int c = 0; c < len; ++c) {
-    float* dst = bt + static_cast<ptrdiff_t>(c) * ld;
-    for (int j = 0; j < m; ++j) dst[j] = rows[j * row_stride + c];
-    for (int j = m; j < ld; ++j) dst[j] = 0.0f;
+  for (int j = 0; j < m; ++j) {
+    const float* src = rows + j * row_stride;
+    for (int c = 0; c < len; ++c) bt[static_cast<ptrdiff_t>(c) * ld + j] = src[c];
   }
 }
 
@@ -507,6 +536,7 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
   v_.forward(params, xin, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   const ptrdiff_t qk_stride = 2 * d;
+  std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
@@ -517,10 +547,9 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
       const float* kh = bufs.qk + c0 * qk_stride + d + h * dh;  // row j: kh + j * qk_stride
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
       transpose_keys(kh, qk_stride, m, static_cast<int>(dh), ld, bufs.kt);
-      for (int i = 0; i < m; ++i) {
-        query_times_keys(qh + i * qk_stride, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
-        kernels::masked_softmax(bufs.scores, bufs.ones, scale, m, p + i * e_count);
-      }
+      queries_times_keys(qh, qk_stride, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      for (int i = 0; i < m; ++i)
+        kernels::masked_softmax(bufs.scores + i * ld, bufs.ones, scale, m, p + i * e_count);
       // att_i = sum_j p[i, j] v_j for every query i.
       weighted_rows(p, e_count, 1, m, bufs.v + c0 * d + h * dh, d, m, static_cast<int>(dh), false,
                     bufs.att + c0 * d + h * dh, d);
@@ -557,6 +586,7 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   if (post_ln_) ln_post_.backward(params, grads, CMat(bufs.res, n, d), bufs.ln_post, d_res, d_res);
   mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
   zero_mat(Mat(bufs.d_v, n, d));
+  std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
@@ -571,11 +601,10 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
       const float* vh = bufs.v + c0 * d + h * dh;
       const float* da = bufs.d_att + c0 * d + h * dh;
       transpose_keys(vh, d, m, static_cast<int>(dh), ld, bufs.kt);
-      for (int i = 0; i < m; ++i) {
-        float* dpi = bufs.d_p + i * e_count;
-        query_times_keys(da + i * d, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
-        kernels::masked_softmax_backward(p + i * e_count, bufs.scores, scale, m, dpi);
-      }
+      queries_times_keys(da, d, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      for (int i = 0; i < m; ++i)
+        kernels::masked_softmax_backward(p + i * e_count, bufs.scores + i * ld, scale, m,
+                                         bufs.d_p + i * e_count);
       // dv_j += sum_i p[i, j] da_i; with dl = d_p (the softmax's input gradient): dq_i = sum_j dl[i, j] k_j,
       // dk_j = sum_i dl[i, j] q_i.
       weighted_rows(p, 1, e_count, m, da, d, m, static_cast<int>(dh), true, bufs.d_v + c0 * d + h * dh, d);
@@ -762,8 +791,8 @@ void Lstm::backward(const Weights& params, float* grads, CMat x, int sequences, 
       }
     }
   }
-  matmul_grad(params, x, d_gates, grads + w_, true);
-  matmul_grad(params, CMat(bufs.h_prev, rows, u), d_gates, grads + w_ + static_cast<size_t>(in_) * g4, true);
+  matmul_grad2(params, x, grads + w_, CMat(bufs.h_prev, rows, u), grads + w_ + static_cast<size_t>(in_) * g4,
+               d_gates, true);
   add_col_sums(grads + b_, d_gates);
   if (!dx.empty()) matmul_t(params, wx_id_, params.values + w_, d_gates, dx, false);
 }

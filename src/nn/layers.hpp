@@ -215,7 +215,7 @@ class SelfAttention {
     float* d_res = nullptr;     // [rows * E, width]
     float* d_p = nullptr;       // [E, E]
     float* kt = nullptr;        // [dh, attention_key_stride(E)] one head's keys (or values) transposed
-    float* scores = nullptr;    // [attention_key_stride(E)] one query's scores
+    float* scores = nullptr;    // [E, attention_key_stride(E)] one head's scores, query by query
     Buffers() = default;
     Buffers(int rows, int entities, int width, int heads)
         : rows(rows), entities(entities), width(width), heads(heads) {}

@@ -148,21 +148,46 @@ void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool ac
   bf16::gemm(a, dz.rows, dz.cols, p.packed->transposed(id), dx.cols, dx.data, dx.stride, accumulate);
 }
 
-void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate) {
-  if (!p.bf16()) {
-    if (accumulate) {
-      WeightsMap(dw, x.cols, dz.cols).noalias() += x.map().transpose() * dz.map();
-    } else {
-      WeightsMap(dw, x.cols, dz.cols).noalias() = x.map().transpose() * dz.map();
-    }
-    return;
+namespace {
+
+void matmul_grad_fp32(CMat x, CMat dz, float* dw, bool accumulate) {
+  if (accumulate) {
+    WeightsMap(dw, x.cols, dz.cols).noalias() += x.map().transpose() * dz.map();
+  } else {
+    WeightsMap(dw, x.cols, dz.cols).noalias() = x.map().transpose() * dz.map();
   }
-  // A = x^T [x.cols, rows], B = dz [rows, dz.cols]: the sum runs over the rows, in pairs.
+}
+
+// dw (+)= x^T dz in bf16 with dz already packed (b): A = x^T [x.cols, rows], the sum runs over the rows, in
+// pairs.
+void matmul_grad_bf16(CMat x, const bf16_t* b, int n, float* dw, bool accumulate) {
   bf16_t* a = Scratch::take(scratch.a, bf16::at_elems(x.cols, x.rows));
-  bf16_t* b = Scratch::take(scratch.b, bf16::packed_elems(dz.rows, dz.cols));
   bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, a);
+  bf16::gemm_at(a, x.cols, x.rows, b, n, dw, n, accumulate);
+}
+
+const bf16_t* pack_dz(CMat dz) {
+  bf16_t* b = Scratch::take(scratch.b, bf16::packed_elems(dz.rows, dz.cols));
   bf16::pack_b_rows(dz.data, dz.stride, dz.rows, dz.cols, b);
-  bf16::gemm_at(a, x.cols, x.rows, b, dz.cols, dw, dz.cols, accumulate);
+  return b;
+}
+
+}  // namespace
+
+void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate) {
+  if (!p.bf16()) return matmul_grad_fp32(x, dz, dw, accumulate);
+  matmul_grad_bf16(x, pack_dz(dz), dz.cols, dw, accumulate);
+}
+
+void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate) {
+  HNS_NN_CHECK(x0.rows == dz.rows && x1.rows == dz.rows, "weight gradients of another row count");
+  if (!p.bf16()) {
+    matmul_grad_fp32(x0, dz, dw0, accumulate);
+    return matmul_grad_fp32(x1, dz, dw1, accumulate);
+  }
+  const bf16_t* b = pack_dz(dz);
+  matmul_grad_bf16(x0, b, dz.cols, dw0, accumulate);
+  matmul_grad_bf16(x1, b, dz.cols, dw1, accumulate);
 }
 
 }  // namespace hns::nn

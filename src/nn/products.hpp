@@ -68,5 +68,8 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate);
 // dw (+)= x^T dz: dw [x.cols, dz.cols] contiguous (a weight gradient, summed over the rows).
 void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate);
+// The same for two inputs that share dz (the LSTM's input and recurrent weights): dw0 (+)= x0^T dz and
+// dw1 (+)= x1^T dz, with the same bits as two matmul_grad calls; bf16 converts dz once.
+void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate);
 
 }  // namespace hns::nn
