@@ -1,6 +1,7 @@
 #include "nn/layers.hpp"
 
 #include "nn/simd.hpp"
+#include "nn/transpose16.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -415,12 +416,33 @@ void queries_times_keys(const float* a, ptrdiff_t a_stride, int count, int len, 
   }
 }
 
-// bt[c * ld + j] = rows[j * row_stride + c] for j < m, c < len. Columns m <= j < ld keep what they hold
-// (zeros from the pass's start, or an earlier row's keys): they only fill the last vector's lanes, whose
-// scores nobody reads, and every lane of a vector product is computed apart from the others.
-// Key by key: the inner loop's trip count is the head width, the same for every row (a loop over a row's
-// few keys inside would end at another count each row, and its branch would miss once per element of len).
+// bt[c * ld + j] = rows[j * row_stride + c] for j < m, c < len. Columns m <= j < ld hold zeros or what they
+// held before (an earlier row's keys, or zeros from the pass's start): they only fill the last vector's
+// lanes, whose scores nobody reads, and every lane of a vector product is computed apart from the others.
 void transpose_keys(const float* rows, ptrdiff_t row_stride, int m, int len, int ld, float* bt) {
+#if defined(__AVX512F__)
+  // From three keys on, blocks of 16 keys x 16 columns transposed in registers (whole-vector loads and
+  // stores, the block's missing keys as zero lanes); fewer keys move element by element below.
+  if (simd::kWidth == 16 && m >= 3) {
+    for (int j0 = 0; j0 < m; j0 += 16) {
+      const int keys = std::min(16, m - j0);
+      for (int c0 = 0; c0 < len; c0 += 16) {
+        const int cols = std::min(16, len - c0);
+        const __mmask16 mask = static_cast<__mmask16>((1u << cols) - 1u);
+        __m512i r[16];
+        for (int j = 0; j < 16; ++j)
+          r[j] = j < keys ? _mm512_maskz_loadu_epi32(mask, rows + (j0 + j) * row_stride + c0)
+                          : _mm512_setzero_si512();
+        transpose16(r);
+        for (int c = 0; c < cols; ++c)
+          _mm512_storeu_si512(bt + static_cast<ptrdiff_t>(c0 + c) * ld + j0, r[c]);
+      }
+    }
+    return;
+  }
+#endif
+  // Key by key: the inner loop's trip count is the head width, the same for every row (a loop over a row's
+  // few keys inside would end at another count each row, and its branch would miss once per element).
   for (int j = 0; j < m; ++j) {
     const float* src = rows + j * row_stride;
     for (int c = 0; c < len; ++c) bt[static_cast<ptrdiff_t>(c) * ld + j] = src[c];
