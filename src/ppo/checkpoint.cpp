@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "ppo/atomic_file.hpp"
+#include "ppo/checkpoint_io.hpp"
 #include "ppo/obs_arrays.hpp"
 #include "ppo/trainer.hpp"
 
@@ -29,77 +30,6 @@ constexpr char kMagic[8] = {'H', 'N', 'S', 'C', 'K', 'P', 'T', '\n'};
 constexpr char kPolicyMagic[8] = {'H', 'N', 'S', 'P', 'L', 'C', 'Y', '\n'};
 constexpr uint32_t kVersion = 1;
 constexpr size_t kHeaderBytes = 8 + 4 + 8;
-
-class Writer {
- public:
-  template <class T>
-  void put(const T& v) {
-    static_assert(std::is_trivially_copyable_v<T>);
-    out_.append(reinterpret_cast<const char*>(&v), sizeof v);
-  }
-  template <class T>
-  void put_array(const T* p, size_t n) {
-    put(uint64_t(n));
-    out_.append(reinterpret_cast<const char*>(p), n * sizeof(T));
-  }
-  void put_string(const std::string& s) { put_array(s.data(), s.size()); }
-  std::string& bytes() { return out_; }
-
- private:
-  std::string out_;
-};
-
-class Reader {
- public:
-  Reader(const char* p, size_t n, const std::string& path) : p_(p), n_(n), path_(path) {}
-  template <class T>
-  T get() {
-    T v;
-    need(sizeof v);
-    std::memcpy(&v, p_ + i_, sizeof v);
-    i_ += sizeof v;
-    return v;
-  }
-  // An array whose length must equal `expected` (what this run needs); `what` names it in the error.
-  template <class T>
-  void get_array(T* dst, size_t expected, const char* what) {
-    const uint64_t n = get<uint64_t>();
-    if (n != expected) {
-      throw std::runtime_error("checkpoint " + path_ + ": " + what + " has " + std::to_string(n) +
-                               " values, this run needs " + std::to_string(expected) +
-                               " (a checkpoint of another model or scene?)");
-    }
-    need(n * sizeof(T));
-    std::memcpy(dst, p_ + i_, n * sizeof(T));
-    i_ += n * sizeof(T);
-  }
-  std::string get_string() {
-    const uint64_t n = get<uint64_t>();
-    need(n);
-    std::string s(p_ + i_, n);
-    i_ += n;
-    return s;
-  }
-  bool at_end() const { return i_ == n_; }
-  // The length of the array that starts here (without reading it).
-  uint64_t peek_length() {
-    need(sizeof(uint64_t));
-    uint64_t n;
-    std::memcpy(&n, p_ + i_, sizeof n);
-    if (n > (n_ - i_) / sizeof(uint32_t))
-      throw std::runtime_error("checkpoint " + path_ + " is truncated inside its payload");
-    return n;
-  }
-
- private:
-  void need(uint64_t bytes) const {
-    if (bytes > n_ - i_) throw std::runtime_error("checkpoint " + path_ + " is truncated inside its payload");
-  }
-  const char* p_;
-  size_t n_;
-  size_t i_ = 0;
-  std::string path_;
-};
 
 struct Payload {
   std::string bytes;
@@ -154,7 +84,7 @@ std::string framed(const char (&magic)[8], const std::string& payload) {
 }  // namespace
 
 std::string Trainer::checkpoint_payload() const {
-  Writer w;
+  CheckpointWriter w;
   // The thread count is the machine's, not the run's (results do not depend on it): recorded as 0, so that a
   // checkpoint is the same bytes for any thread count, as for any rank count.
   TrainConfig stored = cfg_;
@@ -180,25 +110,8 @@ std::string Trainer::checkpoint_payload() const {
   w.put(value_norm_.biased_mean);
   w.put(value_norm_.biased_sq);
   w.put(value_norm_.debias);
-  // Count-based exploration's state counts, per env in key order (only with intrinsic = count).
-  if (counts_) {
-    for (const auto& env : counts_->sorted()) {
-      std::vector<uint64_t> keys(env.size());
-      std::vector<uint32_t> n(env.size());
-      for (size_t i = 0; i < env.size(); ++i) keys[i] = env[i].first, n[i] = env[i].second;
-      w.put_array(keys.data(), keys.size());
-      w.put_array(n.data(), n.size());
-    }
-  }
-  // Random network distillation's predictor and its optimiser (only with intrinsic = rnd; the target is the
-  // seed's).
-  if (rnd_) {
-    const size_t rf = rnd_->predictor().buffer_floats();
-    w.put_array(rnd_->predictor().values(), rf);
-    w.put_array(rnd_->optimizer().m().data(), rf);
-    w.put_array(rnd_->optimizer().v().data(), rf);
-    w.put(rnd_->optimizer().steps());
-  }
+  // The exploration bonus's own section (intrinsic_reward.hpp; nothing for none).
+  intrinsic_->save(w);
 
   return w.bytes();
 }
@@ -215,7 +128,7 @@ void Trainer::save(const std::string& path) const {
 namespace {
 // The config a checkpoint holds, over `base`, checked as a run's config is: a checkpoint with an unknown key
 // or an invalid value is a bad checkpoint (std::runtime_error), not a bad command line.
-TrainConfig stored_config(Reader& r, const TrainConfig& base, const std::string& path) {
+TrainConfig stored_config(CheckpointReader& r, const TrainConfig& base, const std::string& path) {
   TrainConfig c = base;
   try {
     c.merge_run_json(r.get_string(), path + " (config)");
@@ -229,7 +142,7 @@ TrainConfig stored_config(Reader& r, const TrainConfig& base, const std::string&
 
 TrainConfig Trainer::checkpoint_config(const std::string& path) {
   const std::string payload = read_payload(path).bytes;
-  Reader r(payload.data(), payload.size(), path);
+  CheckpointReader r(payload.data(), payload.size(), path);
   return stored_config(r, TrainConfig(), path);
 }
 
@@ -246,9 +159,7 @@ struct Trainer::CheckpointState {
   nn::ParamLayout layout;  // the saved run's parameter layout (values, m, v are in it)
   nn::ObsShape shape;      // the saved run's observation shape
   ScalarNormalizer value_norm;
-  std::vector<std::vector<std::pair<uint64_t, uint32_t>>> counts;  // intrinsic = count: per env of the run
-  nn::FloatBuffer rnd_values, rnd_m, rnd_v;  // intrinsic = rnd: the predictor and its Adam moments
-  int64_t rnd_steps = 0;
+  std::unique_ptr<IntrinsicState> intrinsic;  // the exploration bonus's state (null in an exported policy)
   bool exported = false;  // an exported policy: no episodes, optimiser or exploration state (zeros here)
 };
 
@@ -263,7 +174,7 @@ Trainer::CheckpointState Trainer::read_checkpoint(
                              "(--init-from), not resume one");
   }
   const std::string& file = payload.bytes;
-  Reader r(file.data(), file.size(), path);
+  CheckpointReader r(file.data(), file.size(), path);
   CheckpointState st;
   st.exported = payload.exported;
   st.config = stored_config(r, cfg_, path);
@@ -318,43 +229,11 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   st.value_norm.biased_mean = r.get<double>();
   st.value_norm.biased_sq = r.get<double>();
   st.value_norm.debias = r.get<double>();
-  if (saved.intrinsic == "count" && !st.exported) {
-    st.counts.resize(size_t(saved.envs));
-    for (auto& env : st.counts) {
-      const uint64_t n = r.peek_length();
-      std::vector<uint64_t> keys(n);
-      std::vector<uint32_t> counts(n);
-      r.get_array(keys.data(), n, "the state counts");
-      r.get_array(counts.data(), n, "the state counts");
-      env.resize(n);
-      for (size_t i = 0; i < n; ++i) env[i] = {keys[i], counts[i]};
-    }
-  }
-  if (saved.intrinsic == "rnd" && !st.exported) {
-    const size_t rf = Rnd::predictor_floats(saved_net);
-    st.rnd_values.resize(rf);
-    st.rnd_m.resize(rf);
-    st.rnd_v.resize(rf);
-    r.get_array(st.rnd_values.data(), rf, "the RND predictor");
-    r.get_array(st.rnd_m.data(), rf, "the RND predictor's first moment");
-    r.get_array(st.rnd_v.data(), rf, "the RND predictor's second moment");
-    st.rnd_steps = r.get<int64_t>();
-  }
+  if (!st.exported) st.intrinsic = read_intrinsic_state(r, saved, saved_net);
   if (!r.at_end()) throw std::runtime_error("checkpoint " + path + " has unexpected bytes after its state");
   check_values(st, path);
   return st;
 }
-
-namespace {
-// The first index of `p[0, n)` that is not finite, or that is negative where `non_negative`; -1 if none.
-template <class T>
-int64_t first_bad(const T* p, size_t n, bool non_negative) {
-  for (size_t i = 0; i < n; ++i) {
-    if (!std::isfinite(double(p[i])) || (non_negative && p[i] < 0)) return int64_t(i);
-  }
-  return -1;
-}
-}  // namespace
 
 // Values a checksum cannot vouch for (a file written by a broken tool, or edited and re-summed): what no
 // training run can produce is refused before any of it is applied, as a config's values are.
@@ -369,7 +248,6 @@ void Trainer::check_values(const CheckpointState& st, const std::string& path) {
   counter("the agent-step count", st.agent_steps);
   counter("the env-step count", st.env_steps);
   counter("Adam's step count", st.adam_steps);
-  counter("the RND optimiser's step count", st.rnd_steps);
   for (size_t e = 0; e < st.episodes.size(); ++e) {
     if (st.episodes[e] < 0) refuse("env " + std::to_string(e) + "'s episode count is negative");
     // The counter is an int32 that the run keeps counting up: no run comes near 2^30 episodes per env, and
@@ -380,19 +258,13 @@ void Trainer::check_values(const CheckpointState& st, const std::string& path) {
     }
   }
   const auto floats = [&](const char* name, const auto& values, bool non_negative) {
-    const int64_t i = first_bad(values.data(), values.size(), non_negative);
-    if (i >= 0) {
-      refuse(std::string(name) + " has " + std::to_string(double(values[size_t(i)])) + " at index " +
-             std::to_string(i) +
-             (non_negative ? " (values must be finite and at least 0)" : " (values must be finite)"));
-    }
+    refuse_bad_values<std::decay_t<decltype(values[0])>>(refuse, name, values.data(), values.size(),
+                                                         non_negative);
   };
   floats("the parameter buffer", st.values, false);
   floats("Adam's first moment", st.m, false);
   floats("Adam's second moment", st.v, true);
-  floats("the RND predictor", st.rnd_values, false);
-  floats("the RND predictor's first moment", st.rnd_m, false);
-  floats("the RND predictor's second moment", st.rnd_v, true);
+  if (st.intrinsic) st.intrinsic->check(refuse);
   for (int k = 0; k < nn::kNumObsKeys; ++k) {
     floats("an observation normaliser's mean", st.obs_mean[k], false);
     floats("an observation normaliser's mean square", st.obs_sq[k], true);
@@ -434,16 +306,7 @@ void Trainer::load(const std::string& path, LoadMode mode) {
   adam_->set_steps(st.adam_steps);
   obs_norm_->set_state(st.obs_mean, st.obs_sq, st.obs_debias);
   value_norm_ = st.value_norm;
-  if (counts_ && mode == LoadMode::kResume) counts_->restore(st.counts);
-  if (rnd_ && mode == LoadMode::kResume) {
-    const size_t rf = rnd_->predictor().buffer_floats();
-    if (st.rnd_values.size() != rf)
-      throw std::logic_error("Trainer::load: an RND predictor of another layout");
-    std::memcpy(rnd_->predictor().values(), st.rnd_values.data(), rf * sizeof(float));
-    std::memcpy(rnd_->optimizer().m().data(), st.rnd_m.data(), rf * sizeof(float));
-    std::memcpy(rnd_->optimizer().v().data(), st.rnd_v.data(), rf * sizeof(float));
-    rnd_->optimizer().set_steps(st.rnd_steps);
-  }
+  if (mode == LoadMode::kResume && st.intrinsic) intrinsic_->restore(*st.intrinsic);
 }
 
 namespace {
@@ -554,7 +417,7 @@ uint64_t Trainer::export_policy(const std::string& checkpoint, const std::string
   const Trainer reader(cfg);
   const CheckpointState st = reader.read_checkpoint(checkpoint, [](const TrainConfig&) { return ""; });
   if (st.exported) throw std::runtime_error(checkpoint + " is already an exported policy");
-  Writer w;
+  CheckpointWriter w;
   w.put_string(st.config.to_json());
   w.put(st.iteration);
   w.put(st.agent_steps);

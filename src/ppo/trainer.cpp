@@ -199,24 +199,7 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   ac.max_grad_norm = float(cfg_.grad_clip);
   adam_ = std::make_unique<nn::Adam>(net_->params().layout(), ac);
   obs_norm_ = std::make_unique<nn::ObsNormalizer>(nc.obs);
-  if (cfg_.intrinsic == "count") {
-    // The counts live with the envs that visit them; a checkpoint holds them all, so one process runs them.
-    if (R > 1) {
-      throw physics::ConfigError("intrinsic = count runs in one process (" + std::to_string(R) +
-                                 " ranks given): the state counts are per env and saved with the checkpoint");
-    }
-    count_hasher_ = std::make_unique<CountHasher>(parse_count_state(cfg_.count_state), cfg_.seed);
-    counts_ = std::make_unique<StateCounts>(cfg_.envs, cfg_.count_scale);
-  }
-  if (cfg_.intrinsic == "rnd") {
-    // The predictor is trained on this process's rollout: one process, like the counts.
-    if (R > 1) {
-      throw physics::ConfigError("intrinsic = rnd runs in one process (" + std::to_string(R) +
-                                 " ranks given): its predictor network learns from one rollout");
-    }
-    // RND's target and predictor stay fp32 whatever the precision of the policy and value networks.
-    rnd_ = std::make_unique<Rnd>(nc, cfg_.seed, float(cfg_.lr));
-  }
+  intrinsic_ = make_intrinsic_reward(cfg_, nc, R);
   intrinsic_return_.assign(size_t(env1_ - env0_), 0.0);
 
   rollout_steps_ = cfg_.rollout_steps();
@@ -435,8 +418,8 @@ void Trainer::rollout(IterationMetrics& m) {
     for (int e = 0; e < E; ++e) {
       float bonus = 0.0f;
       const bool absorbed = s.task_complete[e] != 0 && b.mask[row0 + size_t(e) * A] == 0;
-      if (counts_ && !absorbed) {  // a completed blueprint's absorbed steps visit nothing
-        bonus = counts_->visit(env0_ + e, count_hasher_->key(s, L, e));
+      if (!absorbed) {  // a completed blueprint's absorbed steps visit nothing
+        bonus = intrinsic_->step_bonus(s, L, e, env0_ + e);
         intrinsic_return_[size_t(e)] += bonus;
       }
       for (int a = 0; a < A; ++a) {
@@ -476,11 +459,24 @@ void Trainer::rollout(IterationMetrics& m) {
 
   for (int e = 0; e < E; ++e)
     b.block_obs_sums[size_t(block_of[size_t(e)])].merge(b.episode_obs_sums[size_t(e)]);
-  if (rnd_) {
+  if (intrinsic_->after_rollout_runs()) {
     const Clock::time_point tr = Clock::now();
-    rnd_rewards(block_of);
+    RolloutRewards rr;
+    rr.steps = rollout_steps_;
+    rr.rows = rows_;
+    rr.agents = sim_->layout().max_agents;
+    rr.minibatches = cfg_.minibatches;
+    rr.mask = b.mask.data();
+    rr.last = b.last.data();
+    rr.reward = b.reward.data();
+    rr.obs = b.obs.batch();
+    rr.add_to_episode = [&](int env, double bonus) {
+      b.block_episodes[size_t(block_of[size_t(env)]) * kBlockEpisodeValues + kBlockEpisodeValues - 1] +=
+          bonus;
+    };
+    intrinsic_->after_rollout(rr);
     m.t_intrinsic = seconds_since(tr);
-    mark("rnd", tr);
+    mark(intrinsic_->name(), tr);
   }
 
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
@@ -513,41 +509,6 @@ void Trainer::rollout(IterationMetrics& m) {
                                                 & m.intrinsic_reward};
     for (int k = 1; k < kBlockEpisodeValues; ++k) *dst[k - 1] = totals[k] / episodes;
   }
-}
-
-// Random network distillation (intrinsic = rnd): the reward of an agent's step is rnd_scale x the prediction
-// error of the observation it reached within its episode (an episode's last step reaches none: 0), added to
-// the step's reward and, as the mean over the env's real agents, to its episodes' intrinsic return. Then the
-// predictor takes `minibatches` Adam steps on the rollout's learned rows (row i in minibatch i mod
-// minibatches), so the states just visited pay less next time.
-void Trainer::rnd_rewards(const std::vector<int>& block_of) {
-  Buffers& b = *buf_;
-  const int T = rollout_steps_, G = rows_, A = sim_->layout().max_agents;
-  const size_t rows = size_t(T) * G;
-  std::vector<float> err(rows);
-  const nn::ObsBatch obs = b.obs.batch();
-  rnd_->errors(nn::ObsNormView::identity(), obs, rows, err.data());
-  const float scale = float(cfg_.rnd_scale);
-  for (int t = 0; t + 1 < T; ++t) {
-    for (int g = 0; g < G; ++g) {
-      const size_t i = size_t(t) * G + g;
-      if (b.mask[i] == 0 || b.last[i] != 0) continue;
-      const float bonus = scale * err[i + size_t(G)];
-      b.reward[i] += bonus;
-      const int e = g / A;
-      int real = 0;
-      for (int a = 0; a < A; ++a) real += b.mask[size_t(t) * G + size_t(e) * A + a];
-      b.block_episodes[size_t(block_of[size_t(e)]) * kBlockEpisodeValues + kBlockEpisodeValues - 1] +=
-          double(bonus) / real;
-    }
-  }
-  std::vector<std::vector<int32_t>> batches(size_t(cfg_.minibatches));
-  int64_t learned = 0;
-  for (size_t i = 0; i < rows; ++i) {
-    if (b.mask[i] == 0) continue;
-    batches[size_t(learned++ % cfg_.minibatches)].push_back(int32_t(i));
-  }
-  for (const std::vector<int32_t>& mb : batches) rnd_->train(nn::ObsNormView::identity(), obs, mb);
 }
 
 void Trainer::compute_targets(IterationMetrics& m) {

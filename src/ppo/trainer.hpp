@@ -37,8 +37,7 @@
 #include "nn/adam.hpp"
 #include "nn/obs_normalizer.hpp"
 #include "ppo/comm.hpp"
-#include "ppo/intrinsic.hpp"
-#include "ppo/rnd.hpp"
+#include "ppo/intrinsic_reward.hpp"
 #include "ppo/train_config.hpp"
 
 namespace hns::ppo {
@@ -195,14 +194,8 @@ class Trainer {
   std::unique_ptr<nn::ObsNormalizer> obs_norm_;
   ScalarNormalizer value_norm_;
   std::unique_ptr<Buffers> buf_;
-  // Count-based exploration (config intrinsic = count): the state hash, the per-env counts, and each local
-  // env's intrinsic return so far this episode.
-  std::unique_ptr<CountHasher> count_hasher_;
-  std::unique_ptr<StateCounts> counts_;
-  std::unique_ptr<Rnd> rnd_;  // intrinsic = rnd
-  // intrinsic = rnd: the rollout's prediction errors, one per buffer row, and the rows the predictor trains
-  // on.
-  void rnd_rewards(const std::vector<int>& block_of);
+  // The exploration bonus (config intrinsic), and each local env's intrinsic return so far this episode.
+  std::unique_ptr<IntrinsicReward> intrinsic_;
   std::vector<double> intrinsic_return_;
   int64_t iteration_ = 0;
   int64_t agent_steps_ = 0;

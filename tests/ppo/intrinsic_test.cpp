@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "ppo/intrinsic_reward.hpp"
 #include "ppo/trainer.hpp"
 #include "ppo_test_util.hpp"
 
@@ -200,6 +201,64 @@ TEST(CountBased, BadKeysAreRefused) {
   c = count_config();
   c.count_scale = -1;
   EXPECT_THROW(c.validate(), physics::ConfigError);
+}
+
+// The bonus is chosen once, by name, behind one interface: each kind says what it is and when it works, a
+// name no kind answers to and a kind that keeps whole-run state under several ranks are refused.
+TEST(IntrinsicReward, ChosenOnceByNameAndUnknownNamesRefused) {
+  TrainConfig c = count_config();
+  const nn::NetConfig net = nn::net_preset("small");
+  c.intrinsic = "none";
+  auto none = make_intrinsic_reward(c, net, 1);
+  EXPECT_STREQ(none->name(), "none");
+  EXPECT_FALSE(none->after_rollout_runs());
+  c.intrinsic = "count";
+  auto count = make_intrinsic_reward(c, net, 1);
+  EXPECT_STREQ(count->name(), "count");
+  EXPECT_FALSE(count->after_rollout_runs());
+  c.intrinsic = "rnd";
+  auto rnd = make_intrinsic_reward(c, net, 1);
+  EXPECT_STREQ(rnd->name(), "rnd");
+  EXPECT_TRUE(rnd->after_rollout_runs());
+  for (const char* kind : {"count", "rnd"}) {
+    c.intrinsic = kind;
+    EXPECT_THROW(make_intrinsic_reward(c, net, 2), physics::ConfigError) << kind;
+  }
+  c.intrinsic = "curiosity";  // past validate(), the factory still has no default
+  EXPECT_THROW(make_intrinsic_reward(c, net, 1), physics::ConfigError);
+  // A checkpoint of a run whose bonus this build does not know is refused, not read as another kind's.
+  CheckpointReader r("", 0, "x");
+  EXPECT_THROW(read_intrinsic_state(r, c, net), std::runtime_error);
+}
+
+// Each kind writes its own checkpoint section and reads it back into the same state: the counts per env, the
+// RND predictor and its optimiser (bytes written again after a restore equal the first).
+TEST(IntrinsicReward, EachKindRoundTripsItsCheckpointSection) {
+  TrainConfig c = count_config();
+  nn::NetConfig net = nn::net_preset("small");
+  const Trainer t(c);
+  net.obs = t.net().config().obs;
+  const batch::BatchState& s = t.sim().state();
+  for (const char* kind : {"none", "count", "rnd"}) {
+    c.intrinsic = kind;
+    auto a = make_intrinsic_reward(c, net, 1);
+    for (int e = 0; e < c.envs; ++e) a->step_bonus(s, t.sim().layout(), e, e);
+    CheckpointWriter w;
+    a->save(w);
+    const std::string bytes = w.bytes();
+    CheckpointReader r(bytes.data(), bytes.size(), "section");
+    const auto st = read_intrinsic_state(r, c, net);
+    EXPECT_TRUE(r.at_end()) << kind;
+    st->check([](const std::string& why) { throw std::runtime_error(why); });
+    auto b = make_intrinsic_reward(c, net, 1);
+    b->restore(*st);
+    CheckpointWriter again;
+    b->save(again);
+    EXPECT_EQ(again.bytes(), bytes) << kind;
+    if (std::string(kind) != "none") {
+      EXPECT_FALSE(bytes.empty()) << kind;
+    }
+  }
 }
 
 }  // namespace

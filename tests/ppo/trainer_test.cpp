@@ -4,6 +4,7 @@
 #include "ppo/atomic_file.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -55,8 +56,11 @@ std::string results_of(const IterationMetrics& m) {
   return buf;
 }
 
+// Named by the process too: two test runs on one machine (two build trees, ctest -j) must not share files.
 std::string temp_path(const std::string& name) {
-  return (std::filesystem::temp_directory_path() / ("hns_trainer_test_" + name)).string();
+  return (std::filesystem::temp_directory_path() /
+          ("hns_trainer_test_" + std::to_string(::getpid()) + "_" + name))
+      .string();
 }
 
 TEST(TrainConfig, RejectsBadValuesNamingTheField) {

@@ -2,6 +2,7 @@
 #include "replay/trajectory.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstring>
@@ -173,7 +174,9 @@ TEST(Trajectory, BlocksAreAlignedAndDocumented) {
 }
 
 TEST(Trajectory, WriterStreamsTheSameBytesAtomically) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "hns_trajectory_test";
+  // Per process: two test runs on one machine (two build trees) must not share the folder.
+  const std::filesystem::path dir =
+      std::filesystem::temp_directory_path() / ("hns_trajectory_test_" + std::to_string(::getpid()));
   std::filesystem::create_directories(dir);
   const std::string path = (dir / "a.traj").string();
   std::filesystem::remove(path);
