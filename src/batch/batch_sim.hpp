@@ -23,6 +23,7 @@
 namespace hns::batch {
 
 using physics::AgentAction;
+struct EnvRef;
 
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
@@ -334,9 +335,9 @@ class BatchSim {
   // One phase of env e recomputed from its current SoA mirror, exactly as step() runs it after physics; the
   // benchmarks time the kernels this way. Vision: cone + line of sight (vis_* and the world's object
   // visibility); lidar; observations: the observation tensors and masks.
-  void compute_vision(int env) { vision_env(env); }
-  void compute_lidar(int env) { lidar_env(env); }
-  void compute_observations(int env) { observe_env(env); }
+  void compute_vision(int env);
+  void compute_lidar(int env);
+  void compute_observations(int env);
   // The underlying world of env e (read-only; tests and tools).
   const physics::World& world(int env) const { return *worlds_[env]; }
   // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step,
@@ -351,29 +352,11 @@ class BatchSim {
 
  private:
   struct EnvScratch;
+  EnvRef env_ref(int env);  // env `env` as the stages see it (env.hpp)
   void reset_env(int env, uint64_t episode);
   void start_episode_env(int env, uint64_t episode);  // after the world was reset: mirror, shapes, stats
   void refresh_env(int env);                          // mirror, shapes, vision, lidar
-  void mirror_env(int env);
-  void build_shapes(int env);
-  void vision_env(int env);
-  void lidar_env(int env);
-  void rewards_env(int env);
-  void lockbox_rewards_env(int env, float* reward);    // docs/game.md §9.2 box-locking tasks, for agent 0
-  void lockbox_retarget(int env);                      // agent 0's target and its distance
-  void shelter_rewards_env(int env, float* reward);    // docs/game.md §9.3
-  void blueprint_rewards_env(int env, float* reward);  // docs/game.md §9.1; sets task_complete
-  // The food variants (docs/game.md §5.4): eating, health and respawn after a step; adds each agent's food
-  // reward.
-  void food_env(int env, float* reward, bool prep);
-  void pose_counting_env(int env);  // object counting's script (pinned agent, sliding boxes)
-  void observe_env(int env);
-  void end_episode_env(int env, bool discarded);
-  // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).
-  void measure_env(int env, float out[kNumPrepStats]) const;
-  // The seeking phase's RunStat slots (stat_run), updated every step after vision.
-  void track_env(int env, bool any_seen);
-  Footprint box_footprint(int env, int box) const;
+  void end_episode_env(int env, bool discarded);      // records the episode's statistics, starts the next
   void collect_finished();
 
   BatchConfig config_;
