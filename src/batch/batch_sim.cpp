@@ -14,7 +14,7 @@
 #include <cstring>
 #include <stdexcept>
 
-#include "batch/env.hpp"
+#include "batch/tasks/task.hpp"
 
 namespace hns::batch {
 namespace {
@@ -28,17 +28,18 @@ struct BatchSim::EnvScratch {
   int64_t unstable_resets = 0;
   int64_t ns_physics = 0, ns_mirror = 0, ns_perception = 0, ns_observations = 0, ns_rewards = 0;
   std::vector<TraceEvent> trace;  // filled only while tracing
-  physics::Rng food_rng;          // dynamic food's new spots, drawn from (seed, env, episode) per episode
+  physics::Rng task_rng;          // the rules' random stream (EnvRef::rng)
 };
 
 EnvRef BatchSim::env_ref(int env) {
-  return EnvRef{config_, layout_, state_, *worlds_[env], env, scratch_[env].food_rng};
+  return EnvRef{config_, layout_, state_, *worlds_[env], env, *task_, scratch_[env].task_rng};
 }
 
 BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chrono::steady_clock::now()) {
   config_.validate();
   config_.world.compute_visibility = false;  // the batch's SIMD vision fills it
   layout_ = Layout::of(config_);
+  task_ = &task_for(config_.world.task);
   if (layout_.others + layout_.max_boxes + layout_.max_ramps + layout_.max_food > kMaxSightLines) {
     throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": more than " +
                            std::to_string(kMaxSightLines) + " vision targets per agent");
@@ -144,14 +145,14 @@ void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int e
       mark = now;
     };
     EnvRef ref = env_ref(e);
-    if (scripted(ref)) {
+    if (task_->scripted()) {
       // Object counting: the agent's actions are ignored and the script sets every pose after the step.
       const AgentAction idle[1] = {};
       world.step(std::span<const AgentAction>(idle, size_t(world.num_agents())));
-      after_physics(ref);
     } else {
       world.step(actions.subspan(size_t(e) * A, size_t(world.num_agents())));
     }
+    task_->after_physics(ref);
     phase_done("physics", sc.ns_physics);
     if (world.unstable()) {
       // Numerical trouble stays in this env: drop the episode, start a new one.
@@ -166,7 +167,8 @@ void BatchSim::step_range(std::span<const AgentAction> actions, int begin, int e
       vision(ref);
       lidar(ref);
       phase_done("vision+lidar", sc.ns_perception);
-      rewards(ref);
+      state_.step_count[e] = world.step_count();
+      task_->reward_and_done(ref);
       if (state_.done[e] != 0) end_episode_env(e, false);
       phase_done("rewards+resets", sc.ns_rewards);
     }
@@ -251,7 +253,7 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
   state_.task_complete[env] = 0;
   EnvRef ref = env_ref(env);
   build_static_shapes(ref);
-  start_rules(ref, episode);
+  task_->start_episode(ref, episode);
   refresh_env(env);
   std::copy_n(state_.box_pos.data() + size_t(env) * layout_.max_boxes * 3, layout_.max_boxes * 3,
               state_.box_pos_start.data() + size_t(env) * layout_.max_boxes * 3);
@@ -259,7 +261,7 @@ void BatchSim::start_episode_env(int env, uint64_t episode) {
               state_.ramp_pos_start.data() + size_t(env) * layout_.max_ramps * 3);
   std::copy_n(state_.agent_pos.data() + size_t(env) * layout_.max_agents * 3, layout_.max_agents * 3,
               state_.agent_pos_start.data() + size_t(env) * layout_.max_agents * 3);
-  rules_started(ref);
+  task_->episode_started(ref);
 }
 
 void BatchSim::resync(int env) {

@@ -3,8 +3,10 @@
 //
 // One step, per env (TBB over fixed ranges of envs; step_range() is the same code run serially):
 //   actions[env, agent] -> World::step (grab, lock, substeps) -> mirror bodies into the SoA fields
-//   -> shapes for ray casts -> vision (cone + line of sight) and lidar -> rewards, dones, statistics
-//   -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
+//   -> shapes for ray casts -> vision (cone + line of sight) and lidar -> the game's rules: rewards, dones,
+//   statistics -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
+// The game's rules are its Task (tasks/task.hpp, one file per game), the other stages free functions of one
+// env (env.hpp lists them and their files).
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -24,6 +26,7 @@ namespace hns::batch {
 
 using physics::AgentAction;
 struct EnvRef;
+class Task;
 
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
@@ -361,6 +364,7 @@ class BatchSim {
 
   BatchConfig config_;
   Layout layout_;
+  const Task* task_ = nullptr;  // the rules of the game the batch plays (tasks/task.hpp)
   BatchState state_;
   std::vector<std::unique_ptr<physics::World>> worlds_;
   std::vector<EnvScratch> scratch_;  // per env: finished-episode record, timers, counters

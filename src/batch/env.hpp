@@ -8,7 +8,7 @@
 //   perception.cpp    vision (cone + line of sight) and lidar
 //   observations.cpp  the observation tensors
 //   episode_stats.cpp the episode statistics (docs/game.md §7, docs/training.md "Stages")
-//   game_rules.cpp    rewards, dones and the tasks' rules
+//   tasks/            the games' rules, one file per game (tasks/task.hpp)
 #pragma once
 
 #include <cstdint>
@@ -18,14 +18,18 @@
 
 namespace hns::batch {
 
-// Env `index` of a batch: its config, sizes and state (the env's slice of every field), its world, and its
-// random stream for the rules (dynamic food's new spots, drawn from (seed, env, episode) per episode).
+class Task;
+
+// Env `index` of a batch: its config, sizes and state (the env's slice of every field), its world, the game
+// it plays, and its random stream for the rules (dynamic food's new spots, drawn from (seed, env, episode)
+// per episode).
 struct EnvRef {
   const BatchConfig& config;
   const Layout& L;
   BatchState& s;
   physics::World& world;
   int index;
+  const Task& task;
   physics::Rng& rng;
 };
 
@@ -48,7 +52,8 @@ inline ShapesView shapes_view(const EnvRef& env) {
 void vision(EnvRef& env);
 void lidar(EnvRef& env);
 
-// observations.cpp: the observation tensors and masks of every agent (docs/game.md §4.3-§4.6, §14.1).
+// observations.cpp: the observation tensors and masks of every agent (docs/game.md §4.3-§4.6, §14.1), the
+// task's own rows included.
 void observe(EnvRef& env);
 
 // episode_stats.cpp: the PrepStat slots from the mirror (at the end of prep into stat_prep, and at the
@@ -58,16 +63,7 @@ void measure_stats(const EnvRef& env, float out[kNumPrepStats]);
 void track_seeking(EnvRef& env, bool any_seen);
 void record_episode(const EnvRef& env, bool discarded, EpisodeStats& out);
 
-// game_rules.cpp: the rules of the env's game.
-void start_rules(EnvRef& env, uint64_t episode);  // episode start, before the first mirror
-void rules_started(EnvRef& env);                  // episode start, after the first mirror and vision
-bool scripted(const EnvRef& env);                 // the agents' actions are ignored (object counting)
-void after_physics(EnvRef& env);                  // the script's poses after a step
-void rewards(EnvRef& env);                        // rewards, statistics, done
-// game_rules.cpp: the fourth entity type's observation rows (blueprint's construction sites, the food).
-void observe_sites(EnvRef& env);
-void observe_food(EnvRef& env);
-// game_rules.cpp: docs/game.md §9.3's rays from the arena's edges that reach env `env`'s cylinder now.
+// tasks/shelter.cpp: docs/game.md §9.3's rays from the arena's edges that reach env `env`'s cylinder now.
 int shelter_rays_reaching(const Layout& L, const BatchState& s, const physics::World& world, int env);
 
 }  // namespace hns::batch

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cmath>
 
-#include "batch/env.hpp"
+#include "batch/tasks/task.hpp"
 
 namespace hns::batch {
 namespace {
@@ -125,8 +125,7 @@ void observe_bodies(EnvRef& ref) {
 void observe(EnvRef& ref) {
   clear_observations(ref);
   observe_bodies(ref);
-  observe_sites(ref);
-  observe_food(ref);
+  ref.task.observe(ref);
 }
 
 }  // namespace hns::batch

@@ -429,6 +429,8 @@ void WorldConfig::validate() const {
         "must be >= 1 in the blueprint task (its construction sites)");
   check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
         "must be >= 1 in the blueprint task (its building blocks)");
+  check(scene.sites.max == 0 || task == Task::kBlueprint, "sites.max", scene.sites.max,
+        "must be 0 outside the blueprint task (construction sites are its rules')");
   check((task == Task::kCounting) == (scene.layout == Layout::kCounting), "scene.layout", int(scene.layout),
         "the counting layout goes with the object-counting task, and only with it");
   check(scene.food.max == 0 || task == Task::kHideAndSeek, "food.max", scene.food.max,
