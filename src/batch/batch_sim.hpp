@@ -188,7 +188,7 @@ struct Layout {
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 8)")             \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
-  /* Box-locking tasks (WorldConfig::is_lock_task(), docs/game.md §9.2). */                                \
+  /* Box-locking tasks (tasks/lock_tasks.cpp, docs/game.md §9.2). */                                       \
   X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
   X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                 \
   X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")     \

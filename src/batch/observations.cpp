@@ -84,7 +84,7 @@ void observe_bodies(EnvRef& ref) {
   const uint8_t* vis_agents = s.vis_agents.data() + ea * A;
   const uint8_t* vis_boxes = s.vis_boxes.data() + ea * B;
   const uint8_t* vis_ramps = s.vis_ramps.data() + ea * R;
-  const int hider_obs = ref.config.world.obs_hider;
+  const int hider_obs = ref.task.hider_observation();
   for (int a = 0; a < n; ++a) {
     agent_features(a, obs_self + a * Layout::kSelfFeatures);
     if (hider_obs >= 0) obs_self[a * Layout::kSelfFeatures + 9] = float(hider_obs);

@@ -341,7 +341,6 @@ WorldConfig WorldConfig::shelter() {
   c.scene.elongated = {3, 3};
   c.scene.target_diameter_min = 1.5;
   c.scene.target_diameter_max = 2.0;
-  c.obs_hider = 0;  // docs/game.md §9.3's constant observation
   return c;
 }
 
@@ -349,7 +348,6 @@ WorldConfig WorldConfig::blueprint() {
   WorldConfig c = transfer_task(Task::kBlueprint, 150);
   c.scene.boxes = {8, 8};
   c.scene.sites = {1, 4};
-  c.obs_hider = 0;  // docs/game.md §9.1's constant observation
   return c;
 }
 
@@ -357,7 +355,6 @@ WorldConfig WorldConfig::object_counting() {
   WorldConfig c = transfer_task(Task::kCounting, 80);
   c.scene.layout = Layout::kCounting;
   c.scene.boxes = {6, 6};
-  c.obs_hider = 0;
   return c;
 }
 
@@ -443,18 +440,8 @@ void WorldConfig::validate() const {
         "must be in [0, 1000000] (0: never)");
   check(std::isfinite(food.reward_scale) && std::abs(food.reward_scale) <= 1e3, "food.reward_scale",
         food.reward_scale, "must be in [-1000, 1000]");
-  check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
-        "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
   check(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps, "must be in [0, 16]");
-  check(obs_hider >= -1 && obs_hider <= 1, "obs_hider", obs_hider, "must be -1 (the agent's team), 0 or 1");
-  check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
-  check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty,
-        "must be in [0, 1000]");
-  check(shaped_reward_scale >= 0 && shaped_reward_scale <= 1e3, "shaped_reward_scale", shaped_reward_scale,
-        "must be in [0, 1000]");
-  check(success_reward >= 0 && success_reward <= 1e3, "success_reward", success_reward,
-        "must be in [0, 1000]");
   check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
   check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,

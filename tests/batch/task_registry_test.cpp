@@ -35,6 +35,10 @@ TEST(TaskRegistry, EveryScenePlaysATaskOfItsKind) {
     // Hide-and-seek and its food variants are the team game; every other scene is a single-agent task.
     EXPECT_EQ(dynamic_cast<const SingleAgentTask*>(&task) != nullptr, w.is_transfer_task());
     EXPECT_EQ(task.scripted(), w.task == physics::WorldConfig::Task::kCounting);
+    // docs/game.md §4.3, §9: shelter, blueprint and object counting observe a constant 0 as the hider bit.
+    using Game = physics::WorldConfig::Task;
+    const bool constant = w.task == Game::kShelter || w.task == Game::kBlueprint || w.task == Game::kCounting;
+    EXPECT_EQ(task.hider_observation(), constant ? 0 : -1);
   }
 }
 

@@ -117,6 +117,7 @@ void observe_sites(EnvRef& ref) {
 
 class Blueprint final : public SingleAgentTask {
  public:
+  int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
   // The episode's construction sites (the scene's), and their observation rows' source.
   void start_episode(EnvRef& ref, uint64_t /*episode*/) const override {
     const int env = ref.index;

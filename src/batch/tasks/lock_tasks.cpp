@@ -39,16 +39,22 @@ void lockbox_retarget(EnvRef& ref) {
   s.task_dist[env] = best_d;
 }
 
-// docs/game.md §9.2 for agent 0 (every agent of the env gets the same reward): +lock_reward per newly locked
-// box, -unlock_penalty per newly unlocked one; shaped_reward_scale x the decrease of the 2-D distance to the
+// The reward (docs/game.md §9.2), the original's constants.
+constexpr double kLockReward = 5.0;         // per newly locked box
+constexpr double kUnlockPenalty = 5.0;      // per newly unlocked box
+constexpr double kShapedRewardScale = 0.5;  // per m agent 0 gets closer to its target (2-D)
+constexpr double kSuccessReward = 1.0;      // every step the task is complete
+constexpr double kReturnThreshold = 0.1;    // lock-and-return: m (2-D) from the spawn that counts as returned
+
+// docs/game.md §9.2 for agent 0 (every agent of the env gets the same reward): +kLockReward per newly locked
+// box, -kUnlockPenalty per newly unlocked one; kShapedRewardScale x the decrease of the 2-D distance to the
 // target, +scale x the old distance when the target box gets locked, -scale x the new target's distance when
-// a box gets unlocked; +success_reward every step the task is complete: all boxes locked (and in kLockReturn
-// agent 0 within return_threshold of its spawn).
+// a box gets unlocked; +kSuccessReward every step the task is complete: all boxes locked (and in kLockReturn
+// agent 0 within kReturnThreshold of its spawn).
 void lockbox_rewards(EnvRef& ref, float* reward) {
   const int env = ref.index;
   const Layout& L = ref.L;
   BatchState& s = ref.s;
-  const physics::WorldConfig& wc = ref.config.world;
   const uint8_t* locked = s.box_locked.data() + size_t(env) * L.max_boxes;
   uint8_t* before = s.task_locked.data() + size_t(env) * L.max_boxes;
   int newly_locked = 0, newly_unlocked = 0;
@@ -57,22 +63,22 @@ void lockbox_rewards(EnvRef& ref, float* reward) {
     newly_unlocked += locked[b] == 0 && before[b] != 0;
     before[b] = locked[b];
   }
-  double r = wc.lock_reward * newly_locked - wc.unlock_penalty * newly_unlocked;
+  double r = kLockReward * newly_locked - kUnlockPenalty * newly_unlocked;
   const int target = s.task_target[env];
   const double old_dist = s.task_dist[env];
   if (target >= 0 && locked[target] != 0) {
-    r += wc.shaped_reward_scale * old_dist;
+    r += kShapedRewardScale * old_dist;
     lockbox_retarget(ref);
   } else if (newly_unlocked > 0) {
     lockbox_retarget(ref);
-    r -= wc.shaped_reward_scale * s.task_dist[env];
+    r -= kShapedRewardScale * s.task_dist[env];
   } else if (target != kTargetNone) {
     lockbox_retarget(ref);
-    r += wc.shaped_reward_scale * (old_dist - s.task_dist[env]);
+    r += kShapedRewardScale * (old_dist - s.task_dist[env]);
   }
   const int now = s.task_target[env];
-  if (now == kTargetNone || (now == kTargetSpawn && s.task_dist[env] <= wc.return_threshold)) {
-    r += wc.success_reward;
+  if (now == kTargetNone || (now == kTargetSpawn && s.task_dist[env] <= kReturnThreshold)) {
+    r += kSuccessReward;
   }
   std::fill_n(reward, L.max_agents, float(r));
 }

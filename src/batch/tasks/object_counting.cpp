@@ -38,6 +38,7 @@ void pose_counting(EnvRef& ref) {
 
 class ObjectCounting final : public SingleAgentTask {
  public:
+  int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
   bool scripted() const override { return true; }
   void start_episode(EnvRef& ref, uint64_t /*episode*/) const override { pose_counting(ref); }
   void after_physics(EnvRef& ref) const override { pose_counting(ref); }

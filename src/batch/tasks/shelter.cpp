@@ -51,6 +51,9 @@ int shelter_rays_reaching(const Layout& L, const BatchState& s, const physics::W
 namespace {
 
 class Shelter final : public SingleAgentTask {
+ public:
+  int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
+
  protected:
   void reward(EnvRef& ref, float* reward) const override {
     const int rays = shelter_rays_reaching(ref.L, ref.s, ref.world, ref.index);
