@@ -59,7 +59,8 @@ struct FoodConfig {
   bool eat_when_caught = false;  // true: hiders eat even while a hider is seen
 };
 
-// Everything a world needs. Presets: WorldConfig::quadrant(), WorldConfig::full().
+// Everything a world needs. Presets: the static factories below, one per scene of the registry (defined in
+// presets.cpp, beside physics::kScenes).
 struct WorldConfig {
   SceneConfig scene = SceneConfig::quadrant();
   PhysicsConfig physics;
