@@ -11,12 +11,12 @@
 namespace hns::batch {
 namespace {
 
-// Blueprint construction (docs/game.md §9.1). Box corners are the middles of a box's vertical edges, (±sx/2,
-// ±sy/2, 0) from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners
-// are (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box
-// corner of the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean.
-// Completion: every site has a box centre within 0.1 m of its centre and every site corner a box corner
-// within 0.1 m; it pays 3 per site (on top of that step's dense reward) and sets task_complete.
+// The reward (docs/game.md §9.1). Box corners are the middles of a box's vertical edges, (±sx/2, ±sy/2, 0)
+// from its centre turned by its yaw (tilt is ignored: the batch mirrors yaw only); a site's corners are
+// (±0.25, ±0.25, 0) from its centre. Dense: for each site corner, the smooth minimum over every box corner of
+// the distance, sum d e^(αd) / sum e^(αd) with α = -1.5; the reward is -0.05 x their mean. Completion: every
+// site has a box centre within 0.1 m of its centre and every site corner a box corner within 0.1 m; it pays 3
+// per site (on top of that step's dense reward) and sets task_complete.
 constexpr double kBlueprintAlpha = -1.5;
 constexpr double kBlueprintDenseScale = 0.05;
 constexpr double kBlueprintRadius = 0.1;      // m
