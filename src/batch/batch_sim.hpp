@@ -3,8 +3,10 @@
 //
 // One step, per env (TBB over fixed ranges of envs; step_range() is the same code run serially):
 //   actions[env, agent] -> World::step (grab, lock, substeps) -> mirror bodies into the SoA fields
-//   -> shapes for ray casts -> vision (cone + line of sight) and lidar -> rewards, dones, statistics
-//   -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
+//   -> shapes for ray casts -> vision (cone + line of sight) and lidar -> the game's rules: rewards, dones,
+//   statistics -> auto-reset of finished envs (new scene from the env's own stream) -> observation tensors
+// The game's rules are its Task (tasks/task.hpp, one file per game), the other stages free functions of one
+// env (env.hpp lists them and their files).
 #pragma once
 
 #include <tbb/task_arena.h>
@@ -23,6 +25,8 @@
 namespace hns::batch {
 
 using physics::AgentAction;
+struct EnvRef;
+class Task;
 
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
@@ -184,7 +188,7 @@ struct Layout {
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 8)")             \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
-  /* Box-locking tasks (WorldConfig::is_lock_task(), docs/game.md §9.2). */                                \
+  /* Box-locking tasks (tasks/lock_tasks.cpp, docs/game.md §9.2). */                                       \
   X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
   X(float, task_dist, 1, "agent 0's 2-D distance to its target at the last step, m (envs)")                 \
   X(float, task_spawn, 2, "agent 0's spawn x, y, m: the target of lock-and-return's return (envs x 2)")     \
@@ -334,9 +338,9 @@ class BatchSim {
   // One phase of env e recomputed from its current SoA mirror, exactly as step() runs it after physics; the
   // benchmarks time the kernels this way. Vision: cone + line of sight (vis_* and the world's object
   // visibility); lidar; observations: the observation tensors and masks.
-  void compute_vision(int env) { vision_env(env); }
-  void compute_lidar(int env) { lidar_env(env); }
-  void compute_observations(int env) { observe_env(env); }
+  void compute_vision(int env);
+  void compute_lidar(int env);
+  void compute_observations(int env);
   // The underlying world of env e (read-only; tests and tools).
   const physics::World& world(int env) const { return *worlds_[env]; }
   // Mutable access for tests and tools that stage a situation; the SoA mirror catches up at the next step,
@@ -351,33 +355,16 @@ class BatchSim {
 
  private:
   struct EnvScratch;
+  EnvRef env_ref(int env);  // env `env` as the stages see it (env.hpp)
   void reset_env(int env, uint64_t episode);
   void start_episode_env(int env, uint64_t episode);  // after the world was reset: mirror, shapes, stats
   void refresh_env(int env);                          // mirror, shapes, vision, lidar
-  void mirror_env(int env);
-  void build_shapes(int env);
-  void vision_env(int env);
-  void lidar_env(int env);
-  void rewards_env(int env);
-  void lockbox_rewards_env(int env, float* reward);    // docs/game.md §9.2 box-locking tasks, for agent 0
-  void lockbox_retarget(int env);                      // agent 0's target and its distance
-  void shelter_rewards_env(int env, float* reward);    // docs/game.md §9.3
-  void blueprint_rewards_env(int env, float* reward);  // docs/game.md §9.1; sets task_complete
-  // The food variants (docs/game.md §5.4): eating, health and respawn after a step; adds each agent's food
-  // reward.
-  void food_env(int env, float* reward, bool prep);
-  void pose_counting_env(int env);  // object counting's script (pinned agent, sliding boxes)
-  void observe_env(int env);
-  void end_episode_env(int env, bool discarded);
-  // The PrepStat slots, from the mirror (at the end of prep into stat_prep, and at the episode's end).
-  void measure_env(int env, float out[kNumPrepStats]) const;
-  // The seeking phase's RunStat slots (stat_run), updated every step after vision.
-  void track_env(int env, bool any_seen);
-  Footprint box_footprint(int env, int box) const;
+  void end_episode_env(int env, bool discarded);      // records the episode's statistics, starts the next
   void collect_finished();
 
   BatchConfig config_;
   Layout layout_;
+  const Task* task_ = nullptr;  // the rules of the game the batch plays (tasks/task.hpp)
   BatchState state_;
   std::vector<std::unique_ptr<physics::World>> worlds_;
   std::vector<EnvScratch> scratch_;  // per env: finished-episode record, timers, counters

@@ -450,9 +450,9 @@ int draw(const IntRange& r, Rng& rng) {
   return rng.uniform_int(r.min, r.max + 1);
 }
 
-// One attempt at a full scene; false (with `fail` filled) if anything could not be built or placed.
-bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Failure& fail) {
-  // Counts (docs/game.md §2.6). With fewer boxes than elongated.min, every box is elongated.
+// Counts of one attempt (docs/game.md §2.6), and the scene emptied for them. With fewer boxes than
+// elongated.min, every box is elongated.
+void draw_counts(const SceneConfig& config, Rng& rng, Counts& n, Scene& out) {
   n.hiders = draw(config.hiders, rng);
   n.seekers = draw(config.seekers, rng);
   n.boxes = draw(config.boxes, rng);
@@ -480,8 +480,11 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
   out.num_hiders = n.hiders;
   out.num_seekers = n.seekers;
   out.num_elongated = n.elongated;
+}
 
-  // Walls and doors. out.walls receives every piece first; dropped outer walls are removed before marking.
+// Walls and doors of the layout; out.walls receives every piece first, and dropped outer walls are removed
+// entirely (docs/game.md §2.4). False (with `fail` filled) if the random walls could not be built.
+bool build_walls(const SceneConfig& config, Rng& rng, Scene& out, Failure& fail) {
   const int door = config.door_size;
   switch (config.layout) {
     case Layout::kEmpty:
@@ -529,156 +532,207 @@ bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Fa
       out.walls.push_back({17, 9, 29, 9, false});
       break;
   }
-
-  // Dropped outer walls are gone entirely; occupancy is every cell of every remaining piece (docs/game.md
-  // §2.4, add_walls_to_grid after the drop).
   if (!out.outer_walls) {
     out.walls.erase(
         std::remove_if(out.walls.begin(), out.walls.end(), [](const WallCells& w) { return w.outer; }),
         out.walls.end());
   }
-  Grid grid;
-  grid.clear();
-  for (const WallCells& w : out.walls) grid.mark_wall(w);
-  for (const WallCells& w : out.walls) add_wall_box(w, out.wall_boxes);
+  return true;
+}
 
-  if (config.layout == Layout::kCounting) {  // fixed spots; only the sides are drawn
-    out.num_hiders = 1;
-    out.num_seekers = 0;
-    out.num_elongated = 0;
-    out.agents.push_back({kCountingAgentX, kCountingAgentY, kAgentRadius, 2 * kAgentRadius, 2 * kAgentRadius,
-                          2 * kAgentRadius});
-    for (int k = 0; k < n.boxes; ++k) {
-      out.boxes.push_back({kCountingAgentX, kCountingRow0 + k * kCountingRowStep, 0.5 * kBoxSize, kBoxSize,
-                           kBoxSize, kBoxSize});
-      out.sides.push_back(rng.bernoulli(0.5) ? int8_t{-1} : int8_t{1});
-    }
-    return true;
+// The counting layout's fixed spots: the agent at its place, box k in row k; only the sides are drawn.
+void place_counting(const Counts& n, Rng& rng, Scene& out) {
+  out.num_hiders = 1;
+  out.num_seekers = 0;
+  out.num_elongated = 0;
+  out.agents.push_back(
+      {kCountingAgentX, kCountingAgentY, kAgentRadius, 2 * kAgentRadius, 2 * kAgentRadius, 2 * kAgentRadius});
+  for (int k = 0; k < n.boxes; ++k) {
+    out.boxes.push_back({kCountingAgentX, kCountingRow0 + k * kCountingRowStep, 0.5 * kBoxSize, kBoxSize,
+                         kBoxSize, kBoxSize});
+    out.sides.push_back(rng.bernoulli(0.5) ? int8_t{-1} : int8_t{1});
   }
-  const int tries = config.max_tries_per_object;
-  const bool quadrant = config.layout == Layout::kQuadrant;
-  const int together_cells =
-      std::min(kGridSize, static_cast<int>(std::ceil(config.together_radius / kCellSize - 1e-9)));
-  Spawn spawn;
-  Cell cell, first_of_team;
+}
 
-  // Shelter's cylinder, before anything movable (its diameter drawn first).
-  if (config.target_diameter_max > 0) {
+// The rejection placement of one attempt's objects, in the fixed order of docs/game.md §2.2: shelter's
+// cylinder and blueprint's sites before anything movable, then agents, boxes, ramps and food. Each step
+// returns false (with `fail` filled) when an object found no free cells.
+struct Placer {
+  const SceneConfig& config;
+  const Counts& n;
+  Rng& rng;
+  Grid& grid;
+  Scene& out;
+  Failure& fail;
+  int tries = config.max_tries_per_object;
+
+  // Shelter's cylinder (its diameter drawn first).
+  bool target() {
+    if (config.target_diameter_max <= 0) return true;
     Request req;
     req.placement = Placement::kMiddle;
     req.sx = req.sy = rng.uniform(config.target_diameter_min, config.target_diameter_max);
     req.sz = kTargetHeight;
     req.z = 0.5 * kTargetHeight;
+    Cell cell;
     if (!place(req, tries, grid, rng, out.target, cell)) {
       const int c = footprint_cells(req.sx);
       fail = Failure{"target", 0, "cylinder", c, c, req.placement, 0};
       return false;
     }
     out.has_target = true;
+    return true;
   }
 
-  // Blueprint's construction sites, before anything movable.
-  for (int k = 0; k < n.sites; ++k) {
-    Request req;
-    req.placement = Placement::kMiddle;
-    req.middle = kSiteMiddleFraction;
-    req.sx = req.sy = kSiteSize;
-    req.z = 0.5 * kSiteSize;
-    if (!place(req, tries, grid, rng, spawn, cell)) {
-      const int c = footprint_cells(req.sx);
-      fail = Failure{"site", k, "construction site", c, c, req.placement, 0};
-      return false;
+  // Blueprint's construction sites.
+  bool sites() {
+    Spawn spawn;
+    Cell cell;
+    for (int k = 0; k < n.sites; ++k) {
+      Request req;
+      req.placement = Placement::kMiddle;
+      req.middle = kSiteMiddleFraction;
+      req.sx = req.sy = kSiteSize;
+      req.z = 0.5 * kSiteSize;
+      if (!place(req, tries, grid, rng, spawn, cell)) {
+        const int c = footprint_cells(req.sx);
+        fail = Failure{"site", k, "construction site", c, c, req.placement, 0};
+        return false;
+      }
+      spawn.sz = 0.0;
+      out.sites.push_back(spawn);
     }
-    spawn.sz = 0.0;
-    out.sites.push_back(spawn);
+    return true;
   }
 
-  // Agents (docs/game.md §2.5): hiders, then seekers; after the first of a team, near it when together_radius
-  // > 0.
-  for (int a = 0; a < n.hiders + n.seekers; ++a) {
-    const bool hider = a < n.hiders;
-    const int in_team = hider ? a : a - n.hiders;
-    Request req;
-    req.sx = req.sy = req.sz = 2.0 * kAgentRadius;
-    req.z = kAgentRadius;
-    if (in_team > 0 && config.together_radius > 0) {
-      req.placement = Placement::kCloseTo;
-      req.anchor = first_of_team;
-      req.radius_cells = together_cells;
-    } else if (quadrant) {
-      req.placement = hider ? (config.hider_uniform_placement ? Placement::kUniform : Placement::kQuadrant)
-                            : Placement::kOutsideQuadrant;
+  // Agents (docs/game.md §2.5): hiders, then seekers; after the first of a team, near it when
+  // together_radius > 0.
+  bool agents() {
+    const bool quadrant = config.layout == Layout::kQuadrant;
+    const int together_cells =
+        std::min(kGridSize, static_cast<int>(std::ceil(config.together_radius / kCellSize - 1e-9)));
+    Spawn spawn;
+    Cell cell, first_of_team;
+    for (int a = 0; a < n.hiders + n.seekers; ++a) {
+      const bool hider = a < n.hiders;
+      const int in_team = hider ? a : a - n.hiders;
+      Request req;
+      req.sx = req.sy = req.sz = 2.0 * kAgentRadius;
+      req.z = kAgentRadius;
+      if (in_team > 0 && config.together_radius > 0) {
+        req.placement = Placement::kCloseTo;
+        req.anchor = first_of_team;
+        req.radius_cells = together_cells;
+      } else if (quadrant) {
+        req.placement = hider ? (config.hider_uniform_placement ? Placement::kUniform : Placement::kQuadrant)
+                              : Placement::kOutsideQuadrant;
+      }
+      if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
+      if (!place(req, tries, grid, rng, spawn, cell)) {
+        const int c = footprint_cells(req.sx);
+        fail = Failure{hider ? "hider" : "seeker", in_team, "agent", c, c, req.placement, 0};
+        return false;
+      }
+      if (in_team == 0) first_of_team = cell;
+      out.agents.push_back(spawn);
     }
-    if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
-    if (!place(req, tries, grid, rng, spawn, cell)) {
-      const int c = footprint_cells(req.sx);
-      fail = Failure{hider ? "hider" : "seeker", in_team, "agent", c, c, req.placement, 0};
-      return false;
-    }
-    if (in_team == 0) first_of_team = cell;
-    out.agents.push_back(spawn);
+    return true;
   }
 
   // Boxes (docs/game.md §2.6): x-elongated, y-elongated, then cubes; inside the room in the quadrant game.
-  for (int b = 0; b < n.boxes; ++b) {
-    Request req;
-    req.placement = config.spawn_quarter ? Placement::kSpawnQuarter
-                    : quadrant           ? Placement::kQuadrant
-                                         : Placement::kUniform;
-    const char* kind = "cube";
-    if (b < n.x_aligned) {
-      req.sx = kElongatedLong, req.sy = kElongatedShort, kind = "x-elongated";
-    } else if (b < n.elongated) {
-      req.sx = kElongatedShort, req.sy = kElongatedLong, kind = "y-elongated";
-    } else {
-      req.sx = req.sy = kBoxSize;
+  bool boxes() {
+    const bool quadrant = config.layout == Layout::kQuadrant;
+    Spawn spawn;
+    Cell cell;
+    for (int b = 0; b < n.boxes; ++b) {
+      Request req;
+      req.placement = config.spawn_quarter ? Placement::kSpawnQuarter
+                      : quadrant           ? Placement::kQuadrant
+                                           : Placement::kUniform;
+      const char* kind = "cube";
+      if (b < n.x_aligned) {
+        req.sx = kElongatedLong, req.sy = kElongatedShort, kind = "x-elongated";
+      } else if (b < n.elongated) {
+        req.sx = kElongatedShort, req.sy = kElongatedLong, kind = "y-elongated";
+      } else {
+        req.sx = req.sy = kBoxSize;
+      }
+      req.sz = kBoxSize;
+      req.z = 0.5 * kBoxSize;
+      if (!place(req, tries, grid, rng, spawn, cell)) {
+        fail = Failure{"box", b, kind, footprint_cells(req.sx), footprint_cells(req.sy), req.placement, 0};
+        return false;
+      }
+      out.boxes.push_back(spawn);
     }
-    req.sz = kBoxSize;
-    req.z = 0.5 * kBoxSize;
-    if (!place(req, tries, grid, rng, spawn, cell)) {
-      fail = Failure{"box", b, kind, footprint_cells(req.sx), footprint_cells(req.sy), req.placement, 0};
-      return false;
-    }
-    out.boxes.push_back(spawn);
+    return true;
   }
 
   // Ramps: uniform; in var_tri, ramp r in room r mod 3 (the original's tri_placement).
-  for (int r = 0; r < n.ramps; ++r) {
-    Request req;
-    if (!out.rooms.empty()) {
-      req.placement = Placement::kInRoom;
-      req.room = out.rooms[size_t(r) % out.rooms.size()];
+  bool ramps() {
+    Spawn spawn;
+    Cell cell;
+    for (int r = 0; r < n.ramps; ++r) {
+      Request req;
+      if (!out.rooms.empty()) {
+        req.placement = Placement::kInRoom;
+        req.room = out.rooms[size_t(r) % out.rooms.size()];
+      }
+      if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
+      req.sx = req.sy = req.sz = kRampSize;
+      req.z = 0.5 * kRampSize;
+      if (!place(req, tries, grid, rng, spawn, cell)) {
+        const int c = footprint_cells(kRampSize);
+        fail = Failure{"ramp", r, "ramp", c, c, req.placement, 0};
+        return false;
+      }
+      out.ramps.push_back(spawn);
     }
-    if (config.spawn_quarter) req.placement = Placement::kSpawnQuarter;
-    req.sx = req.sy = req.sz = kRampSize;
-    req.z = 0.5 * kRampSize;
-    if (!place(req, tries, grid, rng, spawn, cell)) {
-      const int c = footprint_cells(kRampSize);
-      fail = Failure{"ramp", r, "ramp", c, c, req.placement, 0};
-      return false;
-    }
-    out.ramps.push_back(spawn);
+    return true;
   }
 
-  // Food (docs/game.md §5.4), after the ramps; the items after the first near it with food_together_radius.
-  Cell first_food;
-  const int food_cells =
-      std::min(kGridSize, static_cast<int>(std::ceil(config.food_together_radius / kCellSize - 1e-9)));
-  for (int f = 0; f < n.food; ++f) {
-    Request req = food_request(config);
-    if (f > 0 && config.food_together_radius > 0) {
-      req.placement = Placement::kCloseTo;
-      req.anchor = first_food;
-      req.radius_cells = food_cells;
+  // Food (docs/game.md §5.4), after the ramps; the items after the first near it with
+  // food_together_radius.
+  bool food() {
+    Spawn spawn;
+    Cell cell, first_food;
+    const int food_cells =
+        std::min(kGridSize, static_cast<int>(std::ceil(config.food_together_radius / kCellSize - 1e-9)));
+    for (int f = 0; f < n.food; ++f) {
+      Request req = food_request(config);
+      if (f > 0 && config.food_together_radius > 0) {
+        req.placement = Placement::kCloseTo;
+        req.anchor = first_food;
+        req.radius_cells = food_cells;
+      }
+      if (!place(req, tries, grid, rng, spawn, cell)) {
+        fail = Failure{"food", f, "food item", 1, 1, req.placement, 0};
+        return false;
+      }
+      if (f == 0) first_food = cell;
+      out.food.push_back(spawn);
     }
-    if (!place(req, tries, grid, rng, spawn, cell)) {
-      fail = Failure{"food", f, "food item", 1, 1, req.placement, 0};
-      return false;
-    }
-    if (f == 0) first_food = cell;
-    out.food.push_back(spawn);
+    return true;
   }
-  return true;
+};
+
+// One attempt at a full scene; false (with `fail` filled) if anything could not be built or placed.
+bool try_generate(const SceneConfig& config, Rng& rng, Scene& out, Counts& n, Failure& fail) {
+  draw_counts(config, rng, n, out);
+  if (!build_walls(config, rng, out, fail)) return false;
+  // Occupancy is every cell of every remaining wall piece (docs/game.md §2.4, add_walls_to_grid after the
+  // drop).
+  Grid grid;
+  grid.clear();
+  for (const WallCells& w : out.walls) grid.mark_wall(w);
+  for (const WallCells& w : out.walls) add_wall_box(w, out.wall_boxes);
+  if (config.layout == Layout::kCounting) {
+    place_counting(n, rng, out);
+    return true;
+  }
+  Placer placer{config, n, rng, grid, out, fail};
+  return placer.target() && placer.sites() && placer.agents() && placer.boxes() && placer.ramps() &&
+         placer.food();
 }
 
 // ---------------------------------------------------------------------------------------------------------------

@@ -262,132 +262,6 @@ void near_callback(void* data, dGeomID g1, dGeomID g2) {
 
 }  // namespace
 
-WorldConfig WorldConfig::quadrant() {
-  WorldConfig c;
-  c.scene = SceneConfig::quadrant();
-  c.horizon = 80;
-  c.lock_ramps = false;
-  return c;
-}
-
-WorldConfig WorldConfig::full() {
-  WorldConfig c;
-  c.scene = SceneConfig::full();
-  c.horizon = 240;
-  c.lock_ramps = true;
-  const double open_arena[4] = {-6.0, -6.0, 12.0, 12.0};  // 18 x 18 m around the arena centre
-  std::copy(std::begin(open_arena), std::end(open_arena), std::begin(c.restrict_rect));
-  c.penalize_objects_out = false;
-  return c;
-}
-
-WorldConfig WorldConfig::empty() {
-  WorldConfig c;
-  c.scene = SceneConfig::empty();
-  c.horizon = 80;
-  c.lock_ramps = true;
-  return c;
-}
-
-WorldConfig WorldConfig::lockbox() {
-  WorldConfig c;
-  c.scene = SceneConfig::empty();
-  c.scene.hiders = {1, 1};
-  c.scene.seekers = {0, 0};
-  c.scene.boxes = {1, 1};
-  c.scene.elongated = {0, 0};
-  c.scene.ramps = {0, 0};
-  c.horizon = 60;
-  c.prep_fraction = 0.0;
-  c.lock_ramps = false;
-  c.task = Task::kLockBox;
-  return c;
-}
-
-namespace {
-// docs/game.md §9: a lone hider (team 0) in the empty arena with the spoofed slots of a hide-and-seek policy
-// (one other agent, one ramp at least), grab and lock as in the game, no preparation phase.
-WorldConfig transfer_task(WorldConfig::Task task, int horizon) {
-  WorldConfig c = WorldConfig::lockbox();
-  c.task = task;
-  c.horizon = horizon;
-  c.obs_min_agents = 2;
-  c.obs_min_ramps = 1;
-  return c;
-}
-}  // namespace
-
-WorldConfig WorldConfig::lock_and_return() {
-  WorldConfig c = transfer_task(Task::kLockReturn, 120);
-  c.scene.layout = Layout::kRandomWalls;
-  c.scene.rooms = {6, 6};
-  c.scene.prob_outside_walls = 1.0;
-  c.scene.door_size = 2;
-  return c;
-}
-
-WorldConfig WorldConfig::sequential_lock() {
-  WorldConfig c = transfer_task(Task::kSequentialLock, 120);
-  c.scene.layout = Layout::kVarTri;
-  c.scene.boxes = {4, 4};
-  c.scene.ramps = {3, 3};
-  c.lock_ramps = true;
-  return c;
-}
-
-WorldConfig WorldConfig::shelter() {
-  WorldConfig c = transfer_task(Task::kShelter, 240);
-  c.scene.boxes = {8, 8};
-  c.scene.elongated = {3, 3};
-  c.scene.target_diameter_min = 1.5;
-  c.scene.target_diameter_max = 2.0;
-  c.obs_hider = 0;  // docs/game.md §9.3's constant observation
-  return c;
-}
-
-WorldConfig WorldConfig::blueprint() {
-  WorldConfig c = transfer_task(Task::kBlueprint, 150);
-  c.scene.boxes = {8, 8};
-  c.scene.sites = {1, 4};
-  c.obs_hider = 0;  // docs/game.md §9.1's constant observation
-  return c;
-}
-
-WorldConfig WorldConfig::object_counting() {
-  WorldConfig c = transfer_task(Task::kCounting, 80);
-  c.scene.layout = Layout::kCounting;
-  c.scene.boxes = {6, 6};
-  c.obs_hider = 0;
-  return c;
-}
-
-WorldConfig WorldConfig::food_game() {
-  WorldConfig c = full();
-  c.scene.food = {5, 5};
-  c.scene.food_middle = 0.25;
-  c.scene.food_together_radius = 0.25;
-  return c;  // FoodConfig's defaults are the full game's values (docs/game.md §5.4)
-}
-
-WorldConfig WorldConfig::dynamic_food_game() {
-  WorldConfig c = full();
-  c.scene.layout = Layout::kRandomWalls;
-  c.scene.rooms = {1, 1};
-  c.scene.prob_outside_walls = 0.0;  // no walls at all
-  c.scene.hiders = {3, 3};
-  c.scene.seekers = {2, 2};
-  c.scene.boxes = {8, 8};
-  c.scene.elongated = {8, 8};
-  c.scene.ramps = {0, 0};
-  c.obs_min_ramps = 1;  // the hide-and-seek policy's ramp slot, empty
-  c.scene.food = {1, 1};
-  c.scene.food_middle = 0.2;
-  c.food.max_health = 1.0;
-  c.food.respawn_steps = 1;
-  c.food.relocate = true;
-  return c;
-}
-
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
 }
@@ -429,6 +303,8 @@ void WorldConfig::validate() const {
         "must be >= 1 in the blueprint task (its construction sites)");
   check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
         "must be >= 1 in the blueprint task (its building blocks)");
+  check(scene.sites.max == 0 || task == Task::kBlueprint, "sites.max", scene.sites.max,
+        "must be 0 outside the blueprint task (construction sites are its rules')");
   check((task == Task::kCounting) == (scene.layout == Layout::kCounting), "scene.layout", int(scene.layout),
         "the counting layout goes with the object-counting task, and only with it");
   check(scene.food.max == 0 || task == Task::kHideAndSeek, "food.max", scene.food.max,
@@ -441,18 +317,8 @@ void WorldConfig::validate() const {
         "must be in [0, 1000000] (0: never)");
   check(std::isfinite(food.reward_scale) && std::abs(food.reward_scale) <= 1e3, "food.reward_scale",
         food.reward_scale, "must be in [-1000, 1000]");
-  check(return_threshold > 0 && return_threshold <= 6, "return_threshold", return_threshold,
-        "must be in (0, 6] m");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
   check(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps, "must be in [0, 16]");
-  check(obs_hider >= -1 && obs_hider <= 1, "obs_hider", obs_hider, "must be -1 (the agent's team), 0 or 1");
-  check(lock_reward >= 0 && lock_reward <= 1e3, "lock_reward", lock_reward, "must be in [0, 1000]");
-  check(unlock_penalty >= 0 && unlock_penalty <= 1e3, "unlock_penalty", unlock_penalty,
-        "must be in [0, 1000]");
-  check(shaped_reward_scale >= 0 && shaped_reward_scale <= 1e3, "shaped_reward_scale", shaped_reward_scale,
-        "must be in [0, 1000]");
-  check(success_reward >= 0 && success_reward <= 1e3, "success_reward", success_reward,
-        "must be in [0, 1000]");
   check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
   check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,

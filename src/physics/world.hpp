@@ -59,7 +59,8 @@ struct FoodConfig {
   bool eat_when_caught = false;  // true: hiders eat even while a hider is seen
 };
 
-// Everything a world needs. Presets: WorldConfig::quadrant(), WorldConfig::full().
+// Everything a world needs. Presets: the static factories below, one per scene of the registry (defined in
+// presets.cpp, beside physics::kScenes).
 struct WorldConfig {
   SceneConfig scene = SceneConfig::quadrant();
   PhysicsConfig physics;
@@ -75,15 +76,13 @@ struct WorldConfig {
   // costs every agent -10.
   double restrict_rect[4] = {0.1, 0.1, 5.9, 5.9};
   bool penalize_objects_out = true;
-  // The reward the batch layer computes: the hide-and-seek game (docs/game.md §5) or one of the box-locking tasks of
-  // docs/game.md §9.2, for agent 0: kLockBox (target 'all': the nearest unlocked box; the PPO learning test),
-  // kLockReturn ('all-return': then back to the spawn) and kSequentialLock ('order': boxes in index order,
-  // locks of boxes after the first unlocked one refused); or shelter construction (docs/game.md §9.3: -0.001 per
-  // ray from the arena's edges that reaches the scene's cylinder); or blueprint construction (docs/game.md §9.1:
-  // a dense smooth-min reward pulling box corners onto the sites' corners, +3 per site on completion, after
-  // which the episode is absorbed: every later step's reward is 0 and batch::BatchState::task_complete is 1).
-  // kCounting: object counting (the paper's §6), a supervised probe: the agent is pinned, its actions are
-  // ignored, the boxes slide to their sides on a script (physics::counting_box_x), and the reward is 0.
+  // The game the world plays: the hide-and-seek game (docs/game.md §5) or one of the single-agent tasks of
+  // docs/game.md §9, agent 0 alone: the box-locking tasks kLockBox (the nearest unlocked box; the PPO
+  // learning test), kLockReturn (then back to the spawn) and kSequentialLock (boxes in index order, locks of
+  // boxes after the first unlocked one refused: the world's own rule); shelter and blueprint construction;
+  // kCounting, the object-counting probe (the agent pinned, the boxes on a script, no reward). The rules the
+  // batch applies (rewards, scripts, extra observations) are the task's, one file per game in
+  // src/batch/tasks/.
   enum class Task : uint8_t {
     kHideAndSeek,
     kLockBox,
@@ -94,23 +93,12 @@ struct WorldConfig {
     kCounting
   };
   Task task = Task::kHideAndSeek;
-  double lock_reward = 5.0;          // box-locking tasks: per newly locked box
-  double unlock_penalty = 5.0;       // per newly unlocked box
-  double shaped_reward_scale = 0.5;  // per m the agent gets closer to its target (2-D)
-  double success_reward = 1.0;       // every step the task is complete
-  double return_threshold = 0.1;     // kLockReturn: m (2-D) from the spawn that counts as returned
   // Observation slots at least this many (0 = the scene's maxima): a transfer task's lone agent sees a
   // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (docs/game.md §9 spoofed obs).
   int obs_min_agents = 0;
   int obs_min_ramps = 0;
-  // The "hider" self feature: -1 = the agent's team (1 for hiders); 0 or 1 = that constant (docs/game.md §9:
-  // blueprint and shelter pass 0).
-  int obs_hider = -1;
   // The food variants (the scene's food items; without any, nothing here applies).
   FoodConfig food;
-  bool is_lock_task() const {
-    return task == Task::kLockBox || task == Task::kLockReturn || task == Task::kSequentialLock;
-  }
   // A single-agent task of docs/game.md §9 (agent 0 does it; every agent slot gets its reward).
   bool is_transfer_task() const { return task != Task::kHideAndSeek; }
   // kSequentialLock: box locks are refused for boxes after the first unlocked one.
@@ -121,12 +109,13 @@ struct WorldConfig {
   static WorldConfig empty();
   // One hider and one cube in the empty room, task kLockBox, horizon 60, no preparation phase.
   static WorldConfig lockbox();
-  // The transfer tasks of docs/game.md §9.2: lock the box in one of 6 random rooms and return to the spawn (horizon
-  // 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room (horizon 120).
+  // The transfer tasks of docs/game.md §9.2: lock the box in one of 6 random rooms and return to the spawn
+  // (horizon 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room
+  // (horizon 120).
   static WorldConfig lock_and_return();
   static WorldConfig sequential_lock();
-  // docs/game.md §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2] m,
-  // horizon 240.
+  // docs/game.md §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5,
+  // 2] m, horizon 240.
   static WorldConfig shelter();
   // docs/game.md §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
   static WorldConfig blueprint();
