@@ -23,14 +23,14 @@ namespace hns::ppo {
 // What a bonus computed after the rollout reads and writes of it: T steps of G rows (an env's A agent slots
 // side by side), row t * G + g.
 struct RolloutRewards {
-  int steps = 0;        // T
-  int rows = 0;         // G
-  int agents = 0;       // A: agent slots per env
-  int minibatches = 0;  // the run's minibatch count (a learned bonus may step as often)
-  const uint8_t* mask;  // [T * G] 1 where the row is learned from
-  const uint8_t* last;  // [T * G] 1 on an episode's (or the rollout's) last step
-  float* reward;        // [T * G] the reward trained on: the bonus is added here
-  nn::ObsBatch obs;     // the rollout's observations, row for row
+  int steps = 0;                  // T
+  int rows = 0;                   // G
+  int agents = 0;                 // A: agent slots per env
+  int minibatches = 0;            // the run's minibatch count (a learned bonus may step as often)
+  const uint8_t* mask = nullptr;  // [T * G] 1 where the row is learned from
+  const uint8_t* last = nullptr;  // [T * G] 1 on an episode's (or the rollout's) last step
+  float* reward = nullptr;        // [T * G] the reward trained on: the bonus is added here
+  nn::ObsBatch obs;               // the rollout's observations, row for row
   // Adds `bonus` to the episode return of local env e (the mean over its real agents, for the metrics).
   std::function<void(int env, double bonus)> add_to_episode;
 };
@@ -68,7 +68,7 @@ std::unique_ptr<IntrinsicReward> make_intrinsic_reward(const TrainConfig& cfg, c
                                                        int ranks);
 
 // Reads the checkpoint section of a run whose config is `saved` and networks `saved_net` (its intrinsic key
-// says which section follows); std::runtime_error naming `path` if it does not fit.
+// says which section follows); std::runtime_error (the reader's, naming the file) if it does not fit.
 std::unique_ptr<IntrinsicState> read_intrinsic_state(CheckpointReader& r, const TrainConfig& saved,
                                                      const nn::NetConfig& saved_net);
 

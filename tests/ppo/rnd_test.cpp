@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 #include <oneapi/tbb/task_arena.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -159,7 +160,7 @@ TEST(Rnd, TrainingLogsTheIntrinsicReturnApartAndResumesWithItsPredictor) {
   EXPECT_GT(m1.t_intrinsic, 0.0);
   EXPECT_NE(rnd_config().to_json().find("\"intrinsic\": \"rnd\""), std::string::npos);
 
-  const std::string path = ::testing::TempDir() + "rnd_resume.bin";
+  const std::string path = ::testing::TempDir() + "rnd_resume_" + std::to_string(::getpid()) + ".bin";
   with.save(path);
   const std::string second = metrics_but_timings(with.iterate());
   const std::string third = metrics_but_timings(with.iterate());
