@@ -46,10 +46,6 @@ void zero_mat(Mat m) {
   for (int r = 0; r < m.rows; ++r) std::memset(m.row(r), 0, sizeof(float) * m.cols);
 }
 
-void copy_mat(CMat src, Mat dst) {
-  for (int r = 0; r < src.rows; ++r) std::memcpy(dst.row(r), src.row(r), sizeof(float) * src.cols);
-}
-
 // y[0, n) += a * x[0, n) (fused multiply-add).
 void axpy(float a, const float* x, float* y, int n) {
   simd::for_each<true>(n, [&](auto tag, int i) {
@@ -131,6 +127,14 @@ void LayerNorm::forward(const Weights& params, CMat x, Mat y, float* stats) cons
                             stats + 2 * static_cast<ptrdiff_t>(r));
 }
 
+void LayerNorm::forward_scatter(const Weights& params, CMat x, const int32_t* y_rows, Mat y,
+                                float* stats) const {
+  for (int r = 0; r < x.rows; ++r)
+    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params.values + gain_,
+                            params.values + bias_, n_, nullptr, y.row(y_rows[r]),
+                            stats + 2 * static_cast<ptrdiff_t>(r));
+}
+
 void LayerNorm::forward_fused(const Weights& params, CMat z, const float* pre_bias, Activation act, Mat a,
                               Mat y, float* stats) const {
   for (int r = 0; r < z.rows; ++r)
@@ -143,6 +147,14 @@ void LayerNorm::backward(const Weights& params, float* grads, CMat x, const floa
   for (int r = 0; r < x.rows; ++r)
     kernels::act_layer_norm_backward(x.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params.values + gain_,
                                      dy.row(r), Activation::kNone, n_, grads + gain_, grads + bias_,
+                                     dx.row(r));
+}
+
+void LayerNorm::backward_gather(const Weights& params, float* grads, CMat x, const float* stats,
+                                const int32_t* dy_rows, CMat dy, Mat dx) const {
+  for (int r = 0; r < x.rows; ++r)
+    kernels::act_layer_norm_backward(x.row(r), stats + 2 * static_cast<ptrdiff_t>(r), params.values + gain_,
+                                     dy.row(dy_rows[r]), Activation::kNone, n_, grads + gain_, grads + bias_,
                                      dx.row(r));
 }
 
@@ -506,11 +518,30 @@ void unpermute_qk_add(const float* g, int d, float* dw, float* db) {
   }
 }
 
-// Compact row i of src to row live[i] of dst, zeros to the rows of masked entities.
-void scatter_compact(CMat src, const int32_t* live, int n, const float* mask, Mat dst) {
-  for (int i = 0; i < n; ++i) std::memcpy(dst.row(live[i]), src.row(i), sizeof(float) * dst.cols);
+// Zeros to the rows of dst whose entity is masked.
+void zero_masked_rows(const float* mask, Mat dst) {
   for (int k = 0; k < dst.rows; ++k)
     if (mask[k] == 0.0f) std::memset(dst.row(k), 0, sizeof(float) * dst.cols);
+}
+
+// Row live[i] of dst = a's row i + b's row i (b null: a's row i), for i < n (compact rows to the entities'
+// rows), zeros to the rows of masked entities: one pass instead of an add, a copy and a zero fill.
+void scatter_compact(CMat a, const float* b, const int32_t* live, int n, const float* mask, Mat dst) {
+  const int d = dst.cols;
+  for (int i = 0; i < n; ++i) {
+    float* out = dst.row(live[i]);
+    const float* x = a.row(i);
+    if (b == nullptr) {
+      std::memcpy(out, x, sizeof(float) * d);
+      continue;
+    }
+    const float* y = b + static_cast<ptrdiff_t>(i) * d;
+    simd::for_each<true>(d, [&](auto tag, int c) {
+      using F = decltype(tag);
+      store(out + c, load<F>(x + c) + load<F>(y + c));
+    });
+  }
+  zero_masked_rows(mask, dst);
 }
 
 // Rows [n, n_pad) of m zeroed.
@@ -581,13 +612,16 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
   Mat res(bufs.res, n, d);
   mlp1_.forward(params, CMat(bufs.att, n, d), res);
   for (int i = 0; i < n; ++i) add_row(res.row(i), xc.row(i), d);
-  const Mat out_c(bufs.out_c, n, d);
+  // The real rows' norms go straight to their entities' rows; the padding rows' (kept for their stats, which
+  // the backward pass reads with a zero gradient) to scratch.
   if (post_ln_) {
-    ln_post_.forward(params, res, out_c, bufs.ln_post);
+    ln_post_.forward_scatter(params, CMat(bufs.res, n_real, d), bufs.live, out, bufs.ln_post);
+    ln_post_.forward(params, CMat(res.row(n_real), n - n_real, d), Mat(bufs.out_c, n - n_real, d),
+                     bufs.ln_post + 2 * static_cast<ptrdiff_t>(n_real));
+    zero_masked_rows(mask, out);
   } else {
-    copy_mat(res, out_c);
+    scatter_compact(res, nullptr, bufs.live, n_real, mask, out);
   }
-  scatter_compact(out_c, bufs.live, n_real, mask, out);
 }
 
 void SelfAttention::backward(const Weights& params, float* grads, CMat x, const float* mask, int entities,
@@ -601,11 +635,20 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   const ptrdiff_t qk_stride = 2 * d;
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   // The output gradient of the unmasked entities, compact (a masked entity's output is unused).
+  // With the post norm its backward pass reads them from dout's rows (the padding rows' zero gradient after).
   Mat d_res(bufs.d_res, n, d);
-  for (int i = 0; i < n_real; ++i) std::memcpy(d_res.row(i), dout.row(bufs.live[i]), sizeof(float) * d);
+  if (post_ln_) {
+    ln_post_.backward_gather(params, grads, CMat(bufs.res, n_real, d), bufs.ln_post, bufs.live, dout, d_res);
+  } else {
+    for (int i = 0; i < n_real; ++i) std::memcpy(d_res.row(i), dout.row(bufs.live[i]), sizeof(float) * d);
+  }
   zero_rows(d_res, n_real, n);
   zero_rows(Mat(bufs.d_qk, n, 2 * d), n_real, n);
-  if (post_ln_) ln_post_.backward(params, grads, CMat(bufs.res, n, d), bufs.ln_post, d_res, d_res);
+  if (post_ln_) {
+    const Mat d_pad(d_res.row(n_real), n - n_real, d);
+    ln_post_.backward(params, grads, CMat(bufs.res + static_cast<ptrdiff_t>(n_real) * d, n - n_real, d),
+                      bufs.ln_post + 2 * static_cast<ptrdiff_t>(n_real), d_pad, d_pad);
+  }
   mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
   zero_mat(Mat(bufs.d_v, n, d));
   std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
@@ -648,8 +691,7 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
   // dx: compact first (in d_xn; the residual path included), then moved to the entities' rows.
   if (pre_ln_) ln_pre_.backward(params, grads, xc, bufs.ln_pre, d_xn, d_xn);
-  for (int i = 0; i < n_real; ++i) add_row(d_xn.row(i), d_res.row(i), d);
-  scatter_compact(d_xn, bufs.live, n_real, mask, dx);
+  scatter_compact(d_xn, bufs.d_res, bufs.live, n_real, mask, dx);
 }
 
 // ---- Masked mean pooling

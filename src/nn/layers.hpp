@@ -80,6 +80,12 @@ class LayerNorm {
                      float* stats) const;
   // dy is read; dx written (may alias dy). Accumulates dgain, dbias.
   void backward(const Weights& params, float* grads, CMat x, const float* stats, CMat dy, Mat dx) const;
+  // The same two with one side's rows scattered or gathered (the attention's compact rows to and from the
+  // entities' rows): forward writes x's row r to y's row y_rows[r] (y's other rows untouched); backward reads
+  // dy's row dy_rows[r] for x's row r and writes dx's row r. The arithmetic of each row is that of the above.
+  void forward_scatter(const Weights& params, CMat x, const int32_t* y_rows, Mat y, float* stats) const;
+  void backward_gather(const Weights& params, float* grads, CMat x, const float* stats,
+                       const int32_t* dy_rows, CMat dy, Mat dx) const;
   // Backward of forward_fused: dz = d/dz (activation mask applied); accumulates dgain, dbias, and
   // pre_bias_grad (if not null) += colsum(dz).
   void backward_fused(const Weights& params, float* grads, CMat a, const float* stats, Activation act,
