@@ -17,7 +17,7 @@
 //   ones' in another, then adds C + (even + odd). Either way the order depends on k alone, whatever the
 //   number of rows: a row's result does not depend on the rows beside it (and so not on the thread count).
 //
-// Nothing here allocates; the per-thread scratch of the float-level helpers in layers.cpp grows to its
+// Nothing here allocates; the per-thread scratch of the float-level helpers in products.cpp grows to its
 // largest shape once.
 #pragma once
 

@@ -1,6 +1,6 @@
 // A 16 x 16 transposition of 32-bit elements in AVX-512 registers, for the bf16 packing (nn/bf16_gemm.cpp,
 // inside functions that carry the bf16 extension as a target attribute) and the attention's key
-// transposition (nn/layers.cpp, in AVX-512 builds). Its own target attribute lets both inline it, whatever
+// transposition (nn/attention.cpp, in AVX-512 builds). Its own target attribute lets both inline it, whatever
 // the library's build flags; call it only where the CPU has AVX-512F.
 #pragma once
 
