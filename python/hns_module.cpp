@@ -21,7 +21,7 @@
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 #include "ppo/policy.hpp"
 #include "replay/metrics.hpp"
 #include "replay/play.hpp"
@@ -736,11 +736,11 @@ class Policy {
       return c.data();
     };
     ppo::StepObsView v;
-    v.self = floats("obs_self", {S.self_features});
+    v.obs_self = floats("obs_self", {S.self_features});
     v.lidar = floats("lidar", {S.lidar_rays});
-    v.agents = floats("obs_agents", {O, S.agent_features});
-    v.boxes = floats("obs_boxes", {B, S.box_features});
-    v.ramps = floats("obs_ramps", {R, S.ramp_features});
+    v.obs_agents = floats("obs_agents", {O, S.agent_features});
+    v.obs_boxes = floats("obs_boxes", {B, S.box_features});
+    v.obs_ramps = floats("obs_ramps", {R, S.ramp_features});
     v.mask_agents = bytes("mask_agents", O);
     v.mask_boxes = bytes("mask_boxes", B);
     v.mask_ramps = bytes("mask_ramps", R);
@@ -748,7 +748,7 @@ class Policy {
     v.value_mask_boxes = bytes("value_mask_boxes", B);
     v.value_mask_ramps = bytes("value_mask_ramps", R);
     if (C > 0) {  // scenes with construction sites only
-      v.sites = floats("obs_sites", {C, S.site_features});
+      v.obs_sites = floats("obs_sites", {C, S.site_features});
       v.mask_sites = bytes("mask_sites", C);
       v.value_mask_sites = bytes("value_mask_sites", C);
     }
