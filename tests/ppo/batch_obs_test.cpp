@@ -1,6 +1,8 @@
 // One list of observation fields from the batch to the networks: nn's HNS_OBS_FIELDS names BatchState's
-// observation fields (every one of them) with the batch's own sizes in every scene; nn::ObsStore's arrays and
-// ObsBatch views have the list's sizes, and a batch step copied into the store is the batch's observations.
+// observation fields (every one of them) with the batch's own dimensions in every scene; the batch's field
+// dimensions (the Python module's array shapes) come from HNS_BATCH_FIELDS's counts; nn::ObsStore's arrays
+// and ObsBatch views have the list's sizes, and a batch step copied into the store is the batch's
+// observations.
 #include <gtest/gtest.h>
 
 #include <cstdint>
@@ -8,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "batch/field_dims.hpp"
 #include "nn/obs_store.hpp"
 #include "physics/presets.hpp"
 #include "ppo/batch_obs.hpp"
@@ -22,8 +25,34 @@ batch::Layout layout_of(const physics::SceneInfo& scene) {
   return batch::Layout::of(config);
 }
 
+int64_t product(const std::vector<int64_t>& dims) {
+  int64_t p = 1;
+  for (int64_t d : dims) p *= d;
+  return p;
+}
+
+// Every field's dimensions multiply to its count, in every scene; a layout size of 1 stays an axis and a
+// per-env scalar has none.
+TEST(BatchObs, FieldDimsMultiplyToEachFieldsCount) {
+  for (const physics::SceneInfo& scene : physics::kScenes) {
+    const batch::Layout L = layout_of(scene);
+    using batch::Layout;  // the counts name it
+#define HNS_CHECK_DIMS(type, field, count, doc) \
+  EXPECT_EQ(product(batch::field_dims(#field, L)), int64_t(count)) << scene.name << " " #field;
+    HNS_BATCH_FIELDS(HNS_CHECK_DIMS)
+#undef HNS_CHECK_DIMS
+  }
+  const batch::Layout L = layout_of(physics::kScenes[0]);
+  EXPECT_EQ(batch::field_dims("agent_pos", L), (std::vector<int64_t>{L.max_agents, 3}));
+  EXPECT_EQ(batch::field_dims("obs_agents", L),
+            (std::vector<int64_t>{L.max_agents, L.others, batch::Layout::kAgentFeatures}));
+  EXPECT_EQ(batch::field_dims("stat_prep", L), (std::vector<int64_t>{batch::Layout::kPrepStats}));
+  EXPECT_TRUE(batch::field_dims("done", L).empty());
+  EXPECT_THROW(batch::field_dims("no_such_field", L), std::invalid_argument);
+}
+
 // nn's list holds every observation field of the batch (obs_*, mask_*, value_mask_*, lidar) and nothing
-// else, and each has the batch's size: max_agents rows of the list's values per row.
+// else, and each has the batch's dimensions: max_agents rows of the list's row dimensions.
 TEST(BatchObs, ObservationListIsTheBatchsObservationFields) {
   std::set<std::string> batch_obs, listed;
 #define HNS_OBS_NAME(type, name, count, doc)                                                   \
@@ -37,16 +66,12 @@ TEST(BatchObs, ObservationListIsTheBatchsObservationFields) {
   for (const physics::SceneInfo& scene : physics::kScenes) {
     const batch::Layout L = layout_of(scene);
     const nn::ObsShape shape = obs_shape(L);
-    batch::BatchState state;
-    state.allocate(L, 1);
-#define HNS_CHECK_COUNT(field, member, type, axis, key)                                \
-  if (nn::axis != nn::kObsSiteAxis || L.max_sites > 0) {                               \
-    const nn::ObsField f = HNS_OBS_FIELD_INFO(field, member, type, nn::axis, nn::key); \
-    EXPECT_EQ(state.field.size(), size_t(L.max_agents) * nn::row_values(shape, f))     \
-        << scene.name << " " #field;                                                   \
-  }
-    HNS_OBS_FIELDS(HNS_CHECK_COUNT)
-#undef HNS_CHECK_COUNT
+    for (const nn::ObsField& f : nn::kObsFieldList) {
+      std::vector<int64_t> want{L.max_agents};
+      for (int d : nn::row_dims(shape, f)) want.push_back(d);
+      if (f.axis == nn::kObsSiteAxis && L.max_sites == 0) continue;  // the batch keeps its site width
+      EXPECT_EQ(batch::field_dims(f.name, L), want) << scene.name << " " << f.name;
+    }
   }
 }
 
