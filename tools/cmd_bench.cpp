@@ -19,7 +19,7 @@
 #include "nn/nn_bench.hpp"
 #include "nn/precision.hpp"
 #include "physics/presets.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 
 namespace hns::tools {
 namespace {

@@ -2,9 +2,11 @@
 // same run (the machine's peak reference). Agent-steps/s are reported as items/s, achieved GFLOP/s as a
 // counter (FLOP counting as in nn/nn_bench.hpp). Arguments: preset (0 = paper, 1 = small), TBB threads.
 //   build-nn/bench/nn/bench_nn --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+#include "nn/nn_bench.hpp"
 #include "nn/actor_critic.hpp"
 #include "nn/adam.hpp"
 #include "nn/bf16_gemm.hpp"
+#include "nn/obs_store.hpp"
 
 #include <benchmark/benchmark.h>
 #include <oneapi/tbb/global_control.h>
@@ -18,42 +20,13 @@
 namespace hns::nn {
 namespace {
 
-// Random observations shaped like the `full` scene, all entities present, about 60 % seen.
-struct Obs {
-  std::vector<float> self, lidar, agents, boxes, ramps, seen_a, seen_b, seen_r;
-  Obs(const ObsShape& s, int rows) {
-    InitRng rng(7, 0);
-    auto fill = [&](std::vector<float>& v, size_t n, double lo, double hi) {
-      v.resize(n);
-      for (auto& x : v) x = static_cast<float>(lo + (hi - lo) * rng.uniform());
-    };
-    auto mask = [&](std::vector<float>& v, size_t n) {
-      v.resize(n);
-      for (auto& x : v) x = rng.uniform() < 0.6 ? 1.0f : 0.0f;
-    };
-    const size_t r = rows;
-    fill(self, r * s.self_features, -3, 3);
-    fill(lidar, r * s.lidar_rays, 0, 6);
-    fill(agents, r * s.num_other_agents() * s.agent_features, -3, 3);
-    fill(boxes, r * s.max_boxes * s.box_features, -3, 3);
-    fill(ramps, r * s.max_ramps * s.ramp_features, -3, 3);
-    mask(seen_a, r * s.num_other_agents());
-    mask(seen_b, r * s.max_boxes);
-    mask(seen_r, r * s.max_ramps);
-  }
-  ObsBatch batch() const {
-    ObsBatch b;
-    b.self = self.data();
-    b.lidar = lidar.data();
-    b.agents = agents.data();
-    b.boxes = boxes.data();
-    b.ramps = ramps.data();
-    b.agents_seen = seen_a.data();
-    b.boxes_seen = seen_b.data();
-    b.ramps_seen = seen_r.data();
-    return b;
-  }
-};
+// Random observations shaped like the `full` scene, all entities present, about 60 % seen (hns bench --nn's
+// synthetic observations, nn/nn_bench.hpp, without its absent last box).
+ObsStore random_obs(const ObsShape& s, int rows) {
+  MaskDensity d;
+  d.alternate_last_box = false;
+  return synthetic_obs(s, d, rows, 7);
+}
 
 void set_counters(benchmark::State& state, double agent_steps, double flops) {
   state.SetItemsProcessed(static_cast<int64_t>(state.iterations() * agent_steps));
@@ -68,7 +41,7 @@ void BM_NnInfer(benchmark::State& state, const char* preset, Precision precision
   ac.params().init(1);
   ac.set_precision(precision);
   const int agents = 1024;
-  const Obs obs(cfg.obs, agents);
+  const ObsStore obs = random_obs(cfg.obs, agents);
   const ObsNormalizer norm(cfg.obs);
   std::vector<float> ps(static_cast<size_t>(agents) * ac.state_width()), vs(ps.size());
   std::vector<float> uniforms(static_cast<size_t>(agents) * ac.heads().num_heads(), 0.5f);
@@ -88,7 +61,7 @@ void BM_NnTrain(benchmark::State& state, const char* preset, Precision precision
   ac.params().init(1);
   ac.set_precision(precision);
   const int seqs = 256, steps = 10, rows = seqs * steps;
-  const Obs obs(cfg.obs, rows);
+  const ObsStore obs = random_obs(cfg.obs, rows);
   const ObsNormalizer norm(cfg.obs);
   const int nl = ac.heads().num_logits();
   // A fixed linear loss: the backward pass costs the same whatever the loss.

@@ -1,5 +1,6 @@
 """hns.BatchEnv: shapes and dtypes, zero-copy views, agreement with the C++ simulator, determinism, errors."""
 import gc
+import re
 import sys
 import threading
 import time
@@ -88,6 +89,44 @@ def test_shapes_and_dtypes(scene):
     if scene in ("food", "dynamic-food"):
         assert state["food_health"].shape == (3, sites[0]) and state["food_exists"].all()
         np.testing.assert_array_equal(obs["obs_sites"][:, 0, :, 3], state["food_health"])
+
+
+def doc_dims(doc, sizes):
+    """The shape a field's doc states, "(envs x A x 3)", as (num_envs,) + sizes; None where it states none or
+    names a size this test does not know (the ray-cast shape slots, the food and site counts)."""
+    at = doc.rfind("(envs")
+    if at < 0:
+        return None
+    dims = []
+    for token in doc[at + 1:doc.index(")", at)].split(" x ")[1:]:
+        token = re.split(r"[,=]", token)[0].strip()
+        if token.isdigit():
+            dims.append(int(token))
+        elif token in sizes:
+            dims.append(sizes[token])
+        else:
+            return None
+    return (sizes["envs"],) + tuple(dims)
+
+
+# Every state() array has the shape its entry of the C++ field list (HNS_BATCH_FIELDS) states: the module
+# shapes its arrays from that list's counts, and the list's docs say the same shape.
+@pytest.mark.parametrize("scene", ["quadrant", "lockbox", "blueprint", "food"])
+def test_state_shapes_are_the_field_lists(scene):
+    env = hns.BatchEnv(scene=scene, num_envs=3, threads=1, seed=2)
+    sizes = {"envs": 3, "A": env.max_agents, "A-1": env.max_agents - 1, "B": env.max_boxes,
+             "R": env.max_ramps, "C": env.max_sites}
+    docs, state = env.field_docs(), env.state()
+    checked = 0
+    for name, array in state.items():
+        want = doc_dims(docs[name], sizes)
+        if want is not None:
+            assert array.shape == want, (name, docs[name])
+            checked += 1
+    assert checked >= 50
+    obs, _ = env.reset()
+    for name, array in obs.items():
+        assert array.shape == state[name].shape, name
 
 
 def test_views_are_the_batch_buffers_without_copies():

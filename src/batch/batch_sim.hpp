@@ -17,9 +17,9 @@
 #include <span>
 #include <vector>
 
-#include "batch/aligned_buffer.hpp"
 #include "batch/ray_kernels.hpp"
 #include "batch/stage_stats.hpp"
+#include "common/aligned_buffer.hpp"
 #include "physics/world.hpp"
 
 namespace hns::batch {

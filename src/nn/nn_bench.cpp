@@ -2,6 +2,7 @@
 
 #include "nn/adam.hpp"
 #include "nn/bf16_gemm.hpp"
+#include "nn/obs_store.hpp"
 
 #include <oneapi/tbb/global_control.h>
 #include <oneapi/tbb/parallel_for.h>
@@ -16,68 +17,47 @@ namespace {
 
 constexpr int kMaxLossRows = 64;  // loss scratch rows on the stack
 
-// Synthetic observations for `rows` agent-steps: values in plausible ranges, masks drawn with the given
-// densities (a slot is seen only if present), resets at about 1 in 20 steps.
-struct SyntheticObs {
-  std::vector<float> self, lidar, agents, boxes, ramps;
-  std::vector<float> agents_seen, boxes_seen, ramps_seen, agents_present, boxes_present, ramps_present, reset;
+}  // namespace
 
-  SyntheticObs(const ObsShape& s, const MaskDensity& d, int rows, uint64_t seed) {
-    InitRng rng(seed, 1);
-    auto fill = [&](std::vector<float>& v, size_t n, double lo, double hi) {
-      v.resize(n);
-      for (auto& x : v) x = static_cast<float>(lo + (hi - lo) * rng.uniform());
-    };
-    auto mask = [&](std::vector<float>& v, size_t n, double p) {
-      v.resize(n);
-      for (auto& x : v) x = rng.uniform() < p ? 1.0f : 0.0f;
-    };
-    // present ~ p_present (no draws when 1: the default inputs are those of earlier versions); seen ~ p_seen
-    // among the present.
-    auto present_mask = [&](std::vector<float>& present, std::vector<float>& seen, double p_present) {
-      if (p_present >= 1.0) {
-        present.assign(seen.size(), 1.0f);
-      } else {
-        mask(present, seen.size(), p_present);
-      }
-      for (size_t i = 0; i < seen.size(); ++i) seen[i] *= present[i];
-    };
-    const size_t r = rows;
-    fill(self, r * s.self_features, -3.0, 3.0);
-    fill(lidar, r * s.lidar_rays, 0.0, 6.0);
-    fill(agents, r * s.num_other_agents() * s.agent_features, -3.0, 3.0);
-    fill(boxes, r * s.max_boxes * s.box_features, -3.0, 3.0);
-    fill(ramps, r * s.max_ramps * s.ramp_features, -3.0, 3.0);
-    mask(agents_seen, r * s.num_other_agents(), d.agents_seen);
-    mask(boxes_seen, r * s.max_boxes, d.boxes_seen);
-    mask(ramps_seen, r * s.max_ramps, d.ramps_seen);
-    present_mask(agents_present, agents_seen, d.agents_present);
-    present_mask(boxes_present, boxes_seen, d.boxes_present);
-    present_mask(ramps_present, ramps_seen, d.ramps_present);
-    if (d.alternate_last_box && s.max_boxes > 0)
-      for (size_t i = 0; i < r; i += 2)
-        boxes_present[i * s.max_boxes + s.max_boxes - 1] = boxes_seen[i * s.max_boxes + s.max_boxes - 1] =
-            0.0f;
-    mask(reset, r, 0.05);
-  }
+ObsStore synthetic_obs(const ObsShape& s, const MaskDensity& d, int rows, uint64_t seed) {
+  ObsStore obs(s, size_t(rows));
+  InitRng rng(seed, 1);
+  auto fill = [&](FloatBuffer& v, double lo, double hi) {
+    for (float& x : v.span()) x = static_cast<float>(lo + (hi - lo) * rng.uniform());
+  };
+  auto mask = [&](FloatBuffer& v, double p) {
+    for (float& x : v.span()) x = rng.uniform() < p ? 1.0f : 0.0f;
+  };
+  // present ~ p_present (no draws when 1: the default inputs are those of earlier versions); seen ~ p_seen
+  // among the present.
+  auto present_mask = [&](FloatBuffer& present, FloatBuffer& seen, double p_present) {
+    if (p_present >= 1.0) {
+      std::fill(present.span().begin(), present.span().end(), 1.0f);
+    } else {
+      mask(present, p_present);
+    }
+    for (size_t i = 0; i < seen.size(); ++i) seen[i] *= present[i];
+  };
+  fill(obs.self, -3.0, 3.0);
+  fill(obs.lidar, 0.0, 6.0);
+  fill(obs.agents, -3.0, 3.0);
+  fill(obs.boxes, -3.0, 3.0);
+  fill(obs.ramps, -3.0, 3.0);
+  mask(obs.agents_seen, d.agents_seen);
+  mask(obs.boxes_seen, d.boxes_seen);
+  mask(obs.ramps_seen, d.ramps_seen);
+  present_mask(obs.agents_present, obs.agents_seen, d.agents_present);
+  present_mask(obs.boxes_present, obs.boxes_seen, d.boxes_present);
+  present_mask(obs.ramps_present, obs.ramps_seen, d.ramps_present);
+  const size_t nb = size_t(s.max_boxes);
+  if (d.alternate_last_box && nb > 0)
+    for (size_t i = 0; i < size_t(rows); i += 2)
+      obs.boxes_present[i * nb + nb - 1] = obs.boxes_seen[i * nb + nb - 1] = 0.0f;
+  mask(obs.reset, 0.05);
+  return obs;
+}
 
-  ObsBatch batch() const {
-    ObsBatch b;
-    b.self = self.data();
-    b.lidar = lidar.data();
-    b.agents = agents.data();
-    b.boxes = boxes.data();
-    b.ramps = ramps.data();
-    b.agents_seen = agents_seen.data();
-    b.boxes_seen = boxes_seen.data();
-    b.ramps_seen = ramps_seen.data();
-    b.agents_present = agents_present.data();
-    b.boxes_present = boxes_present.data();
-    b.ramps_present = ramps_present.data();
-    b.reset = reset.data();
-    return b;
-  }
-};
+namespace {
 
 // Median seconds per call of f, after one warm-up call, over at least 3 calls and min_seconds.
 template <class F>
@@ -93,6 +73,117 @@ double median_seconds(double min_seconds, F&& f) {
   }
   std::sort(times.begin(), times.end());
   return times[times.size() / 2];
+}
+
+// Inference: one step for infer_agents agents.
+void bench_inference(const NnBenchOptions& o, const ActorCritic& ac, const ObsNormalizer& norm,
+                     NnBenchResult& res) {
+  const NetConfig& cfg = ac.config();
+  const int nh = ac.heads().num_heads();
+  const int sw = ac.state_width();
+  const ObsStore obs = synthetic_obs(cfg.obs, o.masks, o.infer_agents, o.seed + 2);
+  std::vector<float> ps(static_cast<size_t>(o.infer_agents) * sw, 0.0f), vs(ps.size(), 0.0f);
+  std::vector<float> uniforms(static_cast<size_t>(o.infer_agents) * nh);
+  InitRng rng(o.seed, 3);
+  for (auto& u : uniforms) u = static_cast<float>(rng.uniform());
+  std::vector<int32_t> actions(uniforms.size());
+  std::vector<float> logp(o.infer_agents), value(o.infer_agents);
+  res.infer_seconds = median_seconds(o.min_seconds, [&] {
+    ac.act(norm.view(), obs.batch(), o.infer_agents, ps.data(), vs.data(), uniforms.data(),
+           {actions.data(), logp.data(), value.data(), nullptr});
+  });
+  res.infer_flops_per_agent_step = ac.forward_flops(o.infer_agents) / o.infer_agents;
+  res.infer_agent_steps_per_s = o.infer_agents / res.infer_seconds;
+  res.infer_gflops = res.infer_flops_per_agent_step * res.infer_agent_steps_per_s * 1e-9;
+  res.infer_useful_gflops = ac.forward_flops_used(obs.batch(), o.infer_agents) / res.infer_seconds * 1e-9;
+}
+
+// Training: forward + backward + Adam over the minibatch, with a PPO-like loss.
+void bench_training(const NnBenchOptions& o, ActorCritic& ac, const ObsNormalizer& norm,
+                    const ObsStore& train_obs, NnBenchResult& res) {
+  const int nh = ac.heads().num_heads();
+  const int train_rows = o.train_sequences * o.train_steps;
+  std::vector<int32_t> actions(static_cast<size_t>(train_rows) * nh);
+  std::vector<float> adv(train_rows), target(train_rows);
+  InitRng rng(o.seed, 4);
+  for (size_t i = 0; i < actions.size(); ++i)
+    actions[i] = static_cast<int32_t>(rng.uniform() * ac.heads().sizes()[i % nh]);
+  for (int i = 0; i < train_rows; ++i) {
+    adv[i] = static_cast<float>(rng.normal());
+    target[i] = static_cast<float>(rng.normal());
+  }
+  const CategoricalHeads& heads = ac.heads();
+  const float inv_rows = 1.0f / static_cast<float>(train_rows);
+  LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
+    float lp[kMaxLossRows], ent[kMaxLossRows], dlp[kMaxLossRows], dent[kMaxLossRows];
+    for (int first = 0; first < out.rows; first += kMaxLossRows) {
+      const int n = std::min(kMaxLossRows, out.rows - first);
+      const int32_t* a = actions.data() + static_cast<ptrdiff_t>(out.first_row + first) * nh;
+      const CMat logits = out.logits.block_rows(first, n);
+      heads.log_prob_entropy(logits, a, lp, ent);
+      for (int i = 0; i < n; ++i) {
+        const int row = out.first_row + first + i;
+        dlp[i] = -adv[row] * inv_rows;
+        dent[i] = -0.01f * inv_rows;
+        const float diff = out.value[first + i] - target[row];
+        g.d_value[first + i] = diff * inv_rows;
+        stats[0] += -lp[i] * adv[row] - 0.01 * ent[i] + 0.5 * diff * diff;
+      }
+      heads.backward(logits, a, dlp, dent, g.d_logits.block_rows(first, n));
+    }
+  };
+  AdamConfig acfg;
+  acfg.max_grad_norm = 5.0f;
+  acfg.weight_decay = 1e-6f;
+  Adam adam(ac.params().layout(), acfg);
+  std::vector<double> stats(1);
+  res.train_seconds = median_seconds(o.min_seconds, [&] {
+    ac.forward_backward(norm.view(), train_obs.batch(), o.train_sequences, o.train_steps, nullptr, nullptr,
+                        loss, stats, ac.params().grads());
+    adam.step(ac.params().values(), ac.params().grads());
+  });
+  res.train_flops_per_agent_step = 3.0 * ac.forward_flops(train_rows) / train_rows;
+  res.train_agent_steps_per_s = train_rows / res.train_seconds;
+  res.train_gflops = res.train_flops_per_agent_step * res.train_agent_steps_per_s * 1e-9;
+  res.train_useful_gflops =
+      3.0 * ac.forward_flops_used(train_obs.batch(), train_rows) / res.train_seconds * 1e-9;
+}
+
+// Eigen GEMM reference: one independent product per thread.
+void bench_gemm(const NnBenchOptions& o, NnBenchResult& res) {
+  const int m = 2560, k = 256, n = 1024;
+  using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::vector<RowMat> a(o.threads), b(o.threads), c(o.threads);
+  for (int t = 0; t < o.threads; ++t) {
+    a[t] = RowMat::Random(m, k);
+    b[t] = RowMat::Random(k, n);
+    c[t] = RowMat::Zero(m, n);
+  }
+  const double seconds = median_seconds(
+      o.min_seconds, [&] { tbb::parallel_for(0, o.threads, [&](int t) { c[t].noalias() = a[t] * b[t]; }); });
+  res.gemm_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
+}
+
+// bf16 GEMM reference (precision bf16): the same shape and per-thread products on the bf16 kernel, its
+// operands converted and packed once before the timing.
+void bench_bf16_gemm(const NnBenchOptions& o, NnBenchResult& res) {
+  const int m = 2560, k = 256, n = 1024;
+  using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+  std::vector<std::vector<bf16::bf16_t>> a(o.threads), b(o.threads);
+  std::vector<std::vector<float>> c(o.threads);
+  for (int t = 0; t < o.threads; ++t) {
+    const RowMat af = RowMat::Random(m, k), bf = RowMat::Random(k, n);
+    a[t].resize(bf16::a_elems(m, k));
+    bf16::convert_a(af.data(), k, m, k, a[t].data());
+    b[t].resize(bf16::packed_elems(k, n));
+    bf16::pack_b(bf.data(), n, k, n, false, nullptr, b[t].data());
+    c[t].assign(size_t(m) * n, 0.0f);
+  }
+  const double seconds = median_seconds(o.min_seconds, [&] {
+    tbb::parallel_for(0, o.threads,
+                      [&](int t) { bf16::gemm(a[t].data(), m, k, b[t].data(), n, c[t].data(), n, false); });
+  });
+  res.gemm_bf16_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
 }
 
 }  // namespace
@@ -116,120 +207,18 @@ NnBenchResult run_nn_bench(const NnBenchOptions& o) {
   res.threads = o.threads;
   res.params = ac.num_params();
   res.masks = o.masks.name;
-  const int nh = ac.heads().num_heads();
-  const int sw = ac.state_width();
 
   // A normaliser fitted to the training data.
   const int train_rows = o.train_sequences * o.train_steps;
-  const SyntheticObs train_obs(cfg.obs, o.masks, train_rows, o.seed + 1);
+  const ObsStore train_obs = synthetic_obs(cfg.obs, o.masks, train_rows, o.seed + 1);
   ObsNormalizer norm(cfg.obs);
   norm.update(train_obs.self.data(), train_obs.lidar.data(), train_obs.agents.data(), train_obs.boxes.data(),
               train_obs.ramps.data(), nullptr, train_rows);
 
-  // Inference: one step for infer_agents agents.
-  {
-    const SyntheticObs obs(cfg.obs, o.masks, o.infer_agents, o.seed + 2);
-    std::vector<float> ps(static_cast<size_t>(o.infer_agents) * sw, 0.0f), vs(ps.size(), 0.0f);
-    std::vector<float> uniforms(static_cast<size_t>(o.infer_agents) * nh);
-    InitRng rng(o.seed, 3);
-    for (auto& u : uniforms) u = static_cast<float>(rng.uniform());
-    std::vector<int32_t> actions(uniforms.size());
-    std::vector<float> logp(o.infer_agents), value(o.infer_agents);
-    res.infer_seconds = median_seconds(o.min_seconds, [&] {
-      ac.act(norm.view(), obs.batch(), o.infer_agents, ps.data(), vs.data(), uniforms.data(),
-             {actions.data(), logp.data(), value.data(), nullptr});
-    });
-    res.infer_flops_per_agent_step = ac.forward_flops(o.infer_agents) / o.infer_agents;
-    res.infer_agent_steps_per_s = o.infer_agents / res.infer_seconds;
-    res.infer_gflops = res.infer_flops_per_agent_step * res.infer_agent_steps_per_s * 1e-9;
-    res.infer_useful_gflops = ac.forward_flops_used(obs.batch(), o.infer_agents) / res.infer_seconds * 1e-9;
-  }
-
-  // Training: forward + backward + Adam over the minibatch, with a PPO-like loss.
-  {
-    std::vector<int32_t> actions(static_cast<size_t>(train_rows) * nh);
-    std::vector<float> adv(train_rows), target(train_rows);
-    InitRng rng(o.seed, 4);
-    for (size_t i = 0; i < actions.size(); ++i)
-      actions[i] = static_cast<int32_t>(rng.uniform() * ac.heads().sizes()[i % nh]);
-    for (int i = 0; i < train_rows; ++i) {
-      adv[i] = static_cast<float>(rng.normal());
-      target[i] = static_cast<float>(rng.normal());
-    }
-    const CategoricalHeads& heads = ac.heads();
-    const float inv_rows = 1.0f / static_cast<float>(train_rows);
-    LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
-      float lp[kMaxLossRows], ent[kMaxLossRows], dlp[kMaxLossRows], dent[kMaxLossRows];
-      for (int first = 0; first < out.rows; first += kMaxLossRows) {
-        const int n = std::min(kMaxLossRows, out.rows - first);
-        const int32_t* a = actions.data() + static_cast<ptrdiff_t>(out.first_row + first) * nh;
-        const CMat logits = out.logits.block_rows(first, n);
-        heads.log_prob_entropy(logits, a, lp, ent);
-        for (int i = 0; i < n; ++i) {
-          const int row = out.first_row + first + i;
-          dlp[i] = -adv[row] * inv_rows;
-          dent[i] = -0.01f * inv_rows;
-          const float diff = out.value[first + i] - target[row];
-          g.d_value[first + i] = diff * inv_rows;
-          stats[0] += -lp[i] * adv[row] - 0.01 * ent[i] + 0.5 * diff * diff;
-        }
-        heads.backward(logits, a, dlp, dent, g.d_logits.block_rows(first, n));
-      }
-    };
-    AdamConfig acfg;
-    acfg.max_grad_norm = 5.0f;
-    acfg.weight_decay = 1e-6f;
-    Adam adam(ac.params().layout(), acfg);
-    std::vector<double> stats(1);
-    res.train_seconds = median_seconds(o.min_seconds, [&] {
-      ac.forward_backward(norm.view(), train_obs.batch(), o.train_sequences, o.train_steps, nullptr, nullptr,
-                          loss, stats, ac.params().grads());
-      adam.step(ac.params().values(), ac.params().grads());
-    });
-    res.train_flops_per_agent_step = 3.0 * ac.forward_flops(train_rows) / train_rows;
-    res.train_agent_steps_per_s = train_rows / res.train_seconds;
-    res.train_gflops = res.train_flops_per_agent_step * res.train_agent_steps_per_s * 1e-9;
-    res.train_useful_gflops =
-        3.0 * ac.forward_flops_used(train_obs.batch(), train_rows) / res.train_seconds * 1e-9;
-  }
-
-  // Eigen GEMM reference: one independent product per thread.
-  {
-    const int m = 2560, k = 256, n = 1024;
-    using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    std::vector<RowMat> a(o.threads), b(o.threads), c(o.threads);
-    for (int t = 0; t < o.threads; ++t) {
-      a[t] = RowMat::Random(m, k);
-      b[t] = RowMat::Random(k, n);
-      c[t] = RowMat::Zero(m, n);
-    }
-    const double seconds = median_seconds(o.min_seconds, [&] {
-      tbb::parallel_for(0, o.threads, [&](int t) { c[t].noalias() = a[t] * b[t]; });
-    });
-    res.gemm_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
-  }
-
-  // bf16 GEMM reference (precision bf16): the same shape and per-thread products on the bf16 kernel, its
-  // operands converted and packed once before the timing.
-  if (o.precision == Precision::kBf16) {
-    const int m = 2560, k = 256, n = 1024;
-    using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-    std::vector<std::vector<bf16::bf16_t>> a(o.threads), b(o.threads);
-    std::vector<std::vector<float>> c(o.threads);
-    for (int t = 0; t < o.threads; ++t) {
-      const RowMat af = RowMat::Random(m, k), bf = RowMat::Random(k, n);
-      a[t].resize(bf16::a_elems(m, k));
-      bf16::convert_a(af.data(), k, m, k, a[t].data());
-      b[t].resize(bf16::packed_elems(k, n));
-      bf16::pack_b(bf.data(), n, k, n, false, nullptr, b[t].data());
-      c[t].assign(size_t(m) * n, 0.0f);
-    }
-    const double seconds = median_seconds(o.min_seconds, [&] {
-      tbb::parallel_for(0, o.threads,
-                        [&](int t) { bf16::gemm(a[t].data(), m, k, b[t].data(), n, c[t].data(), n, false); });
-    });
-    res.gemm_bf16_gflops = 2.0 * m * k * n * o.threads / seconds * 1e-9;
-  }
+  bench_inference(o, ac, norm, res);
+  bench_training(o, ac, norm, train_obs, res);
+  bench_gemm(o, res);
+  if (o.precision == Precision::kBf16) bench_bf16_gemm(o, res);
   return res;
 }
 

@@ -16,6 +16,7 @@
 #pragma once
 
 #include "nn/actor_critic.hpp"
+#include "nn/obs_store.hpp"
 #include "nn/precision.hpp"
 
 #include <cstdint>
@@ -67,6 +68,10 @@ struct NnBenchResult {
   double infer_seconds = 0.0;  // median time of one inference step
   double train_seconds = 0.0;  // median time of one training minibatch (incl. Adam)
 };
+
+// Synthetic observations of `rows` agent-steps (what the benchmark runs on): values in plausible ranges,
+// masks drawn with the densities (a slot is seen only if present), resets at about 1 in 20 steps; no sites.
+ObsStore synthetic_obs(const ObsShape& shape, const MaskDensity& masks, int rows, uint64_t seed);
 
 // Throws std::invalid_argument for an unknown model, non-positive sizes or bf16 on a CPU without it.
 NnBenchResult run_nn_bench(const NnBenchOptions& options);

@@ -65,7 +65,11 @@ ObsNormalizer::Sums ObsNormalizer::make_sums() const {
 void ObsNormalizer::add_rows(Sums& sums, const float* self, const float* lidar, const float* agents,
                              const float* boxes, const float* ramps, const float* sites, int rows,
                              const uint8_t* row_mask) const {
-  const std::array<const float*, kNumObsKeys> data = {self, lidar, agents, boxes, ramps, sites};
+  add_rows(sums, {self, lidar, agents, boxes, ramps, sites}, rows, row_mask);
+}
+
+void ObsNormalizer::add_rows(Sums& sums, const std::array<const float*, kNumObsKeys>& data, int rows,
+                             const uint8_t* row_mask) const {
   for (int k = 0; k < kNumObsKeys; ++k) {
     if (data[k] == nullptr || values_per_row_[k] == 0) continue;
     const int f = features_[k];

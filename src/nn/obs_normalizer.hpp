@@ -59,6 +59,9 @@ class ObsNormalizer {
   Sums make_sums() const;
   void add_rows(Sums& sums, const float* self, const float* lidar, const float* agents, const float* boxes,
                 const float* ramps, const float* sites, int rows, const uint8_t* row_mask = nullptr) const;
+  // The same with the arrays by key (ObsKey order; StepObs::features_from gives them).
+  void add_rows(Sums& sums, const std::array<const float*, kNumObsKeys>& by_key, int rows,
+                const uint8_t* row_mask = nullptr) const;
   // One EMA update from the sums (keys without counted rows unchanged).
   void apply(const Sums& sums);
 

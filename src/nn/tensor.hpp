@@ -15,9 +15,11 @@
 #include <stdexcept>
 #include <string>
 
+#include "common/aligned_buffer.hpp"
+
 namespace hns::nn {
 
-inline constexpr size_t kAlignBytes = 64;
+inline constexpr size_t kAlignBytes = AlignedBuffer<float>::kAlignment;
 inline constexpr size_t kAlignFloats = kAlignBytes / sizeof(float);
 
 // Rounds n floats up to a whole number of 64-byte lines.
@@ -32,56 +34,8 @@ inline constexpr size_t align_floats(size_t n) {
       throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": " + (msg)); \
   } while (0)
 
-// A fixed-size, 64-byte aligned, zero-initialised float array (move-only).
-class FloatBuffer {
- public:
-  FloatBuffer() = default;
-  explicit FloatBuffer(size_t n) { resize(n); }
-  FloatBuffer(const FloatBuffer&) = delete;
-  FloatBuffer& operator=(const FloatBuffer&) = delete;
-  FloatBuffer(FloatBuffer&& other) noexcept : data_(other.data_), size_(other.size_) {
-    other.data_ = nullptr;
-    other.size_ = 0;
-  }
-  FloatBuffer& operator=(FloatBuffer&& other) noexcept {
-    if (this != &other) {
-      std::free(data_);
-      data_ = other.data_;
-      size_ = other.size_;
-      other.data_ = nullptr;
-      other.size_ = 0;
-    }
-    return *this;
-  }
-  ~FloatBuffer() { std::free(data_); }
-
-  // Reallocates to n zeroed floats.
-  void resize(size_t n) {
-    std::free(data_);
-    data_ = nullptr;
-    size_ = n;
-    if (n == 0) return;
-    const size_t bytes = align_floats(n) * sizeof(float);
-    data_ = static_cast<float*>(std::aligned_alloc(kAlignBytes, bytes));
-    if (data_ == nullptr) throw std::bad_alloc();
-    std::memset(data_, 0, bytes);
-  }
-  void fill_zero() {
-    if (size_ > 0) std::memset(data_, 0, size_ * sizeof(float));
-  }
-
-  float* data() { return data_; }
-  const float* data() const { return data_; }
-  size_t size() const { return size_; }
-  float& operator[](size_t i) { return data_[i]; }
-  const float& operator[](size_t i) const { return data_[i]; }
-  std::span<float> span() { return {data_, size_}; }
-  std::span<const float> span() const { return {data_, size_}; }
-
- private:
-  float* data_ = nullptr;
-  size_t size_ = 0;
-};
+// A fixed-size, 64-byte aligned, zero-initialised float array (move-only): the one aligned buffer type.
+using FloatBuffer = AlignedBuffer<float>;
 
 // Row-major matrix view: rows x cols, consecutive rows `stride` floats apart (stride >= cols).
 // A [rows, entities, features] tensor is the view [rows * entities, features]; one entity slot of it is the

@@ -18,8 +18,8 @@
 #include <vector>
 
 #include "ppo/atomic_file.hpp"
+#include "ppo/batch_obs.hpp"
 #include "ppo/checkpoint_io.hpp"
-#include "ppo/obs_arrays.hpp"
 #include "ppo/trainer.hpp"
 
 namespace hns::ppo {

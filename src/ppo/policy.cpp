@@ -77,7 +77,7 @@ void Policy::act(const StepObsView& obs, int envs, float* policy_state, float* v
     throw std::invalid_argument("Policy::act: actions must hold envs x max_agents");
   resize(envs);
   const nn::ObsNormView norm = trainer_->obs_normalizer().view();
-  obs_.copy_step(obs, shape, size_t(G), 0, &norm);
+  obs_.copy_step(obs, size_t(G), 0, &norm);
   for (int e = 0; e < envs; ++e) {
     if (stream_episode_[e] != obs.episode[e]) {
       streams_[e] = physics::Rng(seed_ ^ kPlayStream, uint64_t(e), uint64_t(obs.episode[e]));

@@ -11,7 +11,7 @@
 
 #include "batch/batch_sim.hpp"
 #include "physics/rng.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 #include "ppo/trainer.hpp"
 
 namespace hns::ppo {
@@ -51,7 +51,7 @@ class Policy {
   const Trainer* trainer_;
   uint64_t seed_;
   int rows_ = 0;  // agent rows the buffers below are sized for
-  ObsArrays obs_;
+  nn::ObsStore obs_;
   nn::FloatBuffer state_p_, state_v_, uniforms_;
   std::vector<int32_t> actions_;
   std::vector<physics::Rng> streams_;

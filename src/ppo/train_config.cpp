@@ -17,7 +17,7 @@
 #include "nn/entity_net.hpp"
 #include "physics/presets.hpp"
 #include "physics/scene.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 
 namespace hns::ppo {
 
@@ -600,7 +600,7 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   size_t floats = 0;
   // Rollout: observations, actions, the per-row targets and flags, the LSTM states entering each chunk, and
   // the minibatch's gathered copies (at most the rollout again for the per-row targets).
-  floats += rows * (ObsArrays::floats_per_row(net.obs) + heads + 7 + 1 + 8);
+  floats += rows * (nn::ObsStore::floats_per_row(net.obs) + heads + 7 + 1 + 8);
   const size_t state_width = 2 * size_t(net.lstm);
   floats += 2 * 2 * (T / size_t(bptt)) * G * state_width;
   // Networks: values, gradient, Adam's two moments, the gradient groups, and the packed weights (bf16 with

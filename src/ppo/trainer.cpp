@@ -14,7 +14,7 @@
 
 #include "nn/bf16_gemm.hpp"
 #include "physics/rng.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 #include "ppo/ppo_loss.hpp"
 #include "ppo/ppo_math.hpp"
 
@@ -60,7 +60,7 @@ struct Trainer::Buffers {
   // Rollout, step-major: row = t * G + g. Observations normalised once, as they are copied from the
   // simulator (the normaliser does not move during an iteration), and read by both networks in the rollout
   // and in every epoch of the update.
-  ObsArrays obs;
+  nn::ObsStore obs;
   std::vector<int32_t> actions;      // [T*G, heads]
   nn::FloatBuffer logp;              // [T*G] log-probability of the sampled actions
   nn::FloatBuffer value_norm;        // [T*G] value head (normalised)
@@ -90,6 +90,7 @@ struct Trainer::Buffers {
   std::vector<int> mb_groups;                      // [K + 1] its sequence ranges per block
   std::vector<double> all_chunk_stats;             // every rank's chunk statistics of the minibatch
   std::vector<int32_t> episode_start;  // [this rank's envs] rollout step at which its current episode started
+  std::vector<int> block_of;           // [this rank's envs] the local update block of local env e
   // Observation normaliser sums of the rollout's real agent-steps: per env those of its current episode,
   // added to its block's when the episode ends (dropped if it is discarded for numerical trouble, like every
   // other statistic of such an episode), the open ones at the end of the rollout in env order; the blocks'
@@ -100,6 +101,13 @@ struct Trainer::Buffers {
   // HNS_EPISODE_STATS (kBlockEpisodeValues doubles each).
   std::vector<double> block_episodes;
   tbb::enumerable_thread_specific<PpoLossScratch> loss_scratch;  // per thread
+};
+
+// The update's sums over its minibatches: the PPO statistics, the gradient norms and the Adam steps taken.
+struct Trainer::UpdateSums {
+  double stats[kNumStats] = {};
+  double grad_norm = 0;
+  int updates = 0;
 };
 
 std::string IterationMetrics::to_json() const {
@@ -221,6 +229,9 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   b.uniforms.resize(G * heads);
   b.env_actions.resize(G);
   b.episode_start.assign(size_t(env1_ - env0_), 0);
+  b.block_of.assign(size_t(env1_ - env0_), 0);
+  for (int k = block0_; k < block1_; ++k)
+    for (int e = block_env(k); e < block_env(k + 1); ++e) b.block_of[size_t(e - env0_)] = k - block0_;
   b.block_obs_sums.assign(size_t(block1_ - block0_), obs_norm_->make_sums());
   b.episode_obs_sums.assign(size_t(env1_ - env0_), obs_norm_->make_sums());
   next_episode_.assign(cfg_.envs, 0);
@@ -327,138 +338,37 @@ IterationMetrics Trainer::iterate() {
 
 void Trainer::rollout(IterationMetrics& m) {
   Buffers& b = *buf_;
-  const batch::Layout& L = sim_->layout();
-  const nn::ObsShape& shape = net_->config().obs;
-  // E: this rank's envs (env e here is env env0_ + e of the run).
-  const int T = rollout_steps_, G = rows_, A = L.max_agents, E = env1_ - env0_;
-  const int heads = net_->heads().num_heads();
-  const int sw = net_->state_width();
-  const nn::ObsNormView norm = obs_norm_->view();
-  const double vmean = value_norm_.mean(), vstd = value_norm_.std();
+  const int T = rollout_steps_, E = env1_ - env0_;  // E: this rank's envs (env e here is env env0_ + e)
   b.cur_p.fill_zero();
   b.cur_v.fill_zero();
-  const int nblocks = block1_ - block0_;
-  b.block_episodes.assign(size_t(nblocks) * kBlockEpisodeValues, 0.0);
-  // The local block of local env e.
-  std::vector<int> block_of(static_cast<size_t>(E), 0);
-  for (int k = block0_; k < block1_; ++k)
-    for (int e = block_env(k); e < block_env(k + 1); ++e) block_of[size_t(e - env0_)] = k - block0_;
+  b.block_episodes.assign(size_t(block1_ - block0_) * kBlockEpisodeValues, 0.0);
   int64_t simulated = 0;  // agent-steps of real agents, discarded episodes included
   std::fill(b.episode_start.begin(), b.episode_start.end(), 0);
   std::fill(intrinsic_return_.begin(), intrinsic_return_.end(), 0.0);
   for (nn::ObsNormalizer::Sums& k : b.block_obs_sums) k.clear();
   for (nn::ObsNormalizer::Sums& e : b.episode_obs_sums) e.clear();
-  const size_t na = size_t(shape.num_other_agents());
-  const size_t per_agent[nn::kNumObsKeys] = {size_t(shape.self_features),
-                                             size_t(shape.lidar_rays),
-                                             na * shape.agent_features,
-                                             size_t(shape.max_boxes) * shape.box_features,
-                                             size_t(shape.max_ramps) * shape.ramp_features,
-                                             size_t(shape.max_sites) * shape.site_features};
 
   for (int t = 0; t < T; ++t) {
-    const size_t row0 = size_t(t) * G;
-    // Observe: this step's observations, normalised, and masks into the buffer; the real agents' raw
-    // observations into their episode's normaliser sums.
     Clock::time_point tp = Clock::now();
-    const batch::BatchState& s = sim_->state();
-    ObsArrays& o = b.obs;
-    const StepObsView view = StepObsView::of(s);
-    o.copy_step(view, shape, G, row0, &norm);
-    for (int e = 0; e < E; ++e) {
-      const size_t r = size_t(e) * A;
-      const auto at = [&](const float* p, int key) { return p == nullptr ? p : p + r * per_agent[key]; };
-      obs_norm_->add_rows(b.episode_obs_sums[e], at(view.self, 0), at(view.lidar, 1), at(view.agents, 2),
-                          at(view.boxes, 3), at(view.ramps, 4), at(view.sites, 5), A,
-                          s.agent_exists.data() + r);
-    }
-    for (int g = 0; g < G; ++g) {
-      // A completed blueprint's remaining steps are absorbed (reward 0, no decision that matters): they
-      // leave every loss, as padding agents do; its completing step was the last one learned from.
-      b.mask[row0 + g] = s.task_complete[size_t(g / A)] != 0 ? 0 : s.agent_exists[g];
-      simulated += s.agent_exists[g];
-      const bool starts = t == 0 || b.last[row0 - G + g] != 0;
-      o.reset[row0 + g] = starts ? 1.0f : 0.0f;
-    }
-    if (t % cfg_.bptt == 0) {
-      const size_t c = size_t(t / cfg_.bptt);
-      std::memcpy(b.state_p.data() + c * G * sw, b.cur_p.data(), sizeof(float) * G * sw);
-      std::memcpy(b.state_v.data() + c * G * sw, b.cur_v.data(), sizeof(float) * G * sw);
-    }
-    // The run's stream of uniforms for this step, env by env: this rank's share of it.
-    physics::Rng rng(cfg_.seed ^ kActionStream, uint64_t(iteration_), uint64_t(t));
-    for (int64_t i = 0; i < int64_t(env0_) * A * heads; ++i) (void)rng.next_u64();
-    for (int i = 0; i < G * heads; ++i) b.uniforms[i] = uniform_float(rng);
+    simulated += observe_step(t);
     m.t_observe += seconds_since(tp);
     tp = mark("observe", tp);
 
-    // Infer.
-    nn::ActorCritic::ActOutputs out;
-    out.actions = b.actions.data() + row0 * heads;
-    out.logp = b.logp.data() + row0;
-    out.value = b.value_norm.data() + row0;
-    net_->act(nn::ObsNormView::identity(), o.batch().rows_from(row0, shape), G, b.cur_p.data(),
-              b.cur_v.data(), b.uniforms.data(), out);
-    for (int g = 0; g < G; ++g) {
-      const int32_t* a = out.actions + size_t(g) * heads;
-      b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
-      b.value[row0 + g] = float(b.value_norm[row0 + g] * vstd + vmean);
-    }
+    infer_step(t);
     m.t_infer += seconds_since(tp);
     tp = mark("infer", tp);
 
-    // Simulate.
     sim_->step(b.env_actions);
     m.t_simulate += seconds_since(tp);
     tp = mark("simulate", tp);
 
-    // The reward trained on: the game's, scaled, plus the intrinsic reward of the state the step reached
-    // (after an episode's last step: the next episode's first state, which the auto-reset put in its place).
-    const float extrinsic = float(cfg_.extrinsic_coef);
-    for (int e = 0; e < E; ++e) {
-      float bonus = 0.0f;
-      const bool absorbed = s.task_complete[e] != 0 && b.mask[row0 + size_t(e) * A] == 0;
-      if (!absorbed) {  // a completed blueprint's absorbed steps visit nothing
-        bonus = intrinsic_->step_bonus(s, L, e, env0_ + e);
-        intrinsic_return_[size_t(e)] += bonus;
-      }
-      for (int a = 0; a < A; ++a) {
-        const size_t r = row0 + size_t(e) * A + a;
-        b.reward[r] =
-            extrinsic * s.reward[size_t(e) * A + a] + (s.agent_exists[size_t(e) * A + a] ? bonus : 0.0f);
-        b.last[r] = (s.done[e] != 0 || t == T - 1 || s.task_complete[e] != 0) ? 1 : 0;
-      }
-    }
-    for (const batch::EpisodeStats& st : sim_->finished()) {
-      const int first = b.episode_start[st.env];
-      b.episode_start[st.env] = t + 1;
-      const int blk = block_of[size_t(st.env)];
-      if (!st.discarded) b.block_obs_sums[size_t(blk)].merge(b.episode_obs_sums[st.env]);
-      b.episode_obs_sums[st.env].clear();
-      const double intrinsic = intrinsic_return_[size_t(st.env)];
-      intrinsic_return_[size_t(st.env)] = 0.0;
-      if (st.discarded) {
-        // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
-        // rollout leave every loss and statistic, as padding agents do.
-        for (int u = first; u <= t; ++u) {
-          std::fill_n(b.mask.begin() + ptrdiff_t(size_t(u) * G + size_t(st.env) * A), A, uint8_t{0});
-        }
-        continue;
-      }
-      const float v[kBlockEpisodeValues] = {1.0f, st.hider_return, st.seeker_return,
-#define HNS_EPISODE_VALUE(name, doc) st.name,
-                                            HNS_EPISODE_STATS(HNS_EPISODE_VALUE)
-#undef HNS_EPISODE_VALUE
-                                                float(intrinsic)};
-      double* sums = b.block_episodes.data() + size_t(blk) * kBlockEpisodeValues;
-      for (int k = 0; k < kBlockEpisodeValues; ++k) sums[k] += v[k];
-    }
+    record_step(t);
     m.t_observe += seconds_since(tp);
     mark("observe", tp);
   }
 
   for (int e = 0; e < E; ++e)
-    b.block_obs_sums[size_t(block_of[size_t(e)])].merge(b.episode_obs_sums[size_t(e)]);
+    b.block_obs_sums[size_t(b.block_of[size_t(e)])].merge(b.episode_obs_sums[size_t(e)]);
   if (intrinsic_->after_rollout_runs()) {
     const Clock::time_point tr = Clock::now();
     RolloutRewards rr;
@@ -471,14 +381,126 @@ void Trainer::rollout(IterationMetrics& m) {
     rr.reward = b.reward.data();
     rr.obs = b.obs.batch();
     rr.add_to_episode = [&](int env, double bonus) {
-      b.block_episodes[size_t(block_of[size_t(env)]) * kBlockEpisodeValues + kBlockEpisodeValues - 1] +=
+      b.block_episodes[size_t(b.block_of[size_t(env)]) * kBlockEpisodeValues + kBlockEpisodeValues - 1] +=
           bonus;
     };
     intrinsic_->after_rollout(rr);
     m.t_intrinsic = seconds_since(tr);
     mark(intrinsic_->name(), tr);
   }
+  finish_rollout(m, simulated);
+}
 
+int64_t Trainer::observe_step(int t) {
+  // This step's observations, normalised, and masks into the buffer; the real agents' raw observations into
+  // their episode's normaliser sums; the masks, the reset flags, the LSTM states entering a chunk and the
+  // step's uniforms.
+  Buffers& b = *buf_;
+  const nn::ObsShape& shape = net_->config().obs;
+  const int G = rows_, A = sim_->layout().max_agents, E = env1_ - env0_;
+  const int heads = net_->heads().num_heads();
+  const int sw = net_->state_width();
+  const size_t row0 = size_t(t) * G;
+  const nn::ObsNormView norm = obs_norm_->view();
+  const batch::BatchState& s = sim_->state();
+  const StepObsView view = StepObsView::of(s);
+  b.obs.copy_step(view, G, row0, &norm);
+  for (int e = 0; e < E; ++e) {
+    const size_t r = size_t(e) * A;
+    obs_norm_->add_rows(b.episode_obs_sums[e], view.features_from(r, shape), A, s.agent_exists.data() + r);
+  }
+  int64_t simulated = 0;
+  for (int g = 0; g < G; ++g) {
+    // A completed blueprint's remaining steps are absorbed (reward 0, no decision that matters): they
+    // leave every loss, as padding agents do; its completing step was the last one learned from.
+    b.mask[row0 + g] = s.task_complete[size_t(g / A)] != 0 ? 0 : s.agent_exists[g];
+    simulated += s.agent_exists[g];
+    const bool starts = t == 0 || b.last[row0 - G + g] != 0;
+    b.obs.reset[row0 + g] = starts ? 1.0f : 0.0f;
+  }
+  if (t % cfg_.bptt == 0) {
+    const size_t c = size_t(t / cfg_.bptt);
+    std::memcpy(b.state_p.data() + c * G * sw, b.cur_p.data(), sizeof(float) * G * sw);
+    std::memcpy(b.state_v.data() + c * G * sw, b.cur_v.data(), sizeof(float) * G * sw);
+  }
+  // The run's stream of uniforms for this step, env by env: this rank's share of it.
+  physics::Rng rng(cfg_.seed ^ kActionStream, uint64_t(iteration_), uint64_t(t));
+  for (int64_t i = 0; i < int64_t(env0_) * A * heads; ++i) (void)rng.next_u64();
+  for (int i = 0; i < G * heads; ++i) b.uniforms[i] = uniform_float(rng);
+  return simulated;
+}
+
+void Trainer::infer_step(int t) {
+  Buffers& b = *buf_;
+  const int G = rows_;
+  const size_t row0 = size_t(t) * G;
+  const int heads = net_->heads().num_heads();
+  const double vmean = value_norm_.mean(), vstd = value_norm_.std();
+  nn::ActorCritic::ActOutputs out;
+  out.actions = b.actions.data() + row0 * heads;
+  out.logp = b.logp.data() + row0;
+  out.value = b.value_norm.data() + row0;
+  net_->act(nn::ObsNormView::identity(), b.obs.batch().rows_from(row0, net_->config().obs), G, b.cur_p.data(),
+            b.cur_v.data(), b.uniforms.data(), out);
+  for (int g = 0; g < G; ++g) {
+    const int32_t* a = out.actions + size_t(g) * heads;
+    b.env_actions[g] = {uint8_t(a[0]), uint8_t(a[1]), uint8_t(a[2]), uint8_t(a[3]), uint8_t(a[4])};
+    b.value[row0 + g] = float(b.value_norm[row0 + g] * vstd + vmean);
+  }
+}
+
+void Trainer::record_step(int t) {
+  Buffers& b = *buf_;
+  const batch::BatchState& s = sim_->state();
+  const batch::Layout& L = sim_->layout();
+  const int T = rollout_steps_, G = rows_, A = L.max_agents, E = env1_ - env0_;
+  const size_t row0 = size_t(t) * G;
+  // The reward trained on: the game's, scaled, plus the intrinsic reward of the state the step reached
+  // (after an episode's last step: the next episode's first state, which the auto-reset put in its place).
+  const float extrinsic = float(cfg_.extrinsic_coef);
+  for (int e = 0; e < E; ++e) {
+    float bonus = 0.0f;
+    const bool absorbed = s.task_complete[e] != 0 && b.mask[row0 + size_t(e) * A] == 0;
+    if (!absorbed) {  // a completed blueprint's absorbed steps visit nothing
+      bonus = intrinsic_->step_bonus(s, L, e, env0_ + e);
+      intrinsic_return_[size_t(e)] += bonus;
+    }
+    for (int a = 0; a < A; ++a) {
+      const size_t r = row0 + size_t(e) * A + a;
+      b.reward[r] =
+          extrinsic * s.reward[size_t(e) * A + a] + (s.agent_exists[size_t(e) * A + a] ? bonus : 0.0f);
+      b.last[r] = (s.done[e] != 0 || t == T - 1 || s.task_complete[e] != 0) ? 1 : 0;
+    }
+  }
+  for (const batch::EpisodeStats& st : sim_->finished()) {
+    const int first = b.episode_start[st.env];
+    b.episode_start[st.env] = t + 1;
+    const int blk = b.block_of[size_t(st.env)];
+    if (!st.discarded) b.block_obs_sums[size_t(blk)].merge(b.episode_obs_sums[st.env]);
+    b.episode_obs_sums[st.env].clear();
+    const double intrinsic = intrinsic_return_[size_t(st.env)];
+    intrinsic_return_[size_t(st.env)] = 0.0;
+    if (st.discarded) {
+      // An episode cut short by numerical trouble has no true end to bootstrap from: its steps in this
+      // rollout leave every loss and statistic, as padding agents do.
+      for (int u = first; u <= t; ++u) {
+        std::fill_n(b.mask.begin() + ptrdiff_t(size_t(u) * G + size_t(st.env) * A), A, uint8_t{0});
+      }
+      continue;
+    }
+    const float v[kBlockEpisodeValues] = {1.0f, st.hider_return, st.seeker_return,
+#define HNS_EPISODE_VALUE(name, doc) st.name,
+                                          HNS_EPISODE_STATS(HNS_EPISODE_VALUE)
+#undef HNS_EPISODE_VALUE
+                                              float(intrinsic)};
+    double* sums = b.block_episodes.data() + size_t(blk) * kBlockEpisodeValues;
+    for (int k = 0; k < kBlockEpisodeValues; ++k) sums[k] += v[k];
+  }
+}
+
+void Trainer::finish_rollout(IterationMetrics& m, int64_t simulated) {
+  Buffers& b = *buf_;
+  const int T = rollout_steps_, E = env1_ - env0_;
   // Envs that are not at the start of an episode (one was cut short by numerical trouble and restarted
   // mid-rollout) start their next episode before the next rollout, so every rollout starts fresh. Every
   // rank learns every env's next episode (the checkpoint holds them all).
@@ -576,13 +598,43 @@ void Trainer::compute_targets(IterationMetrics& m) {
 
 void Trainer::update(IterationMetrics& m) {
   Buffers& b = *buf_;
-  const int T = rollout_steps_, G = rows_, bptt = cfg_.bptt;
-  const int heads = net_->heads().num_heads();
-  const int sw = net_->state_width();
-  const int chunks_per_row = T / bptt;
+  const int64_t n_chunks = comm_->sum(collect_chunks());
+  if (n_chunks == 0) return;
+  const int minibatches = cfg_.minibatches_for(n_chunks);
+  size_minibatch(minibatches);
+  UpdateSums sums;
+  for (int epoch = 0; epoch < cfg_.epochs; ++epoch) {
+    for (int k = 0; k < block1_ - block0_; ++k) {
+      std::vector<int32_t>& list = b.block_chunks[size_t(k)];
+      physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_),
+                       (uint64_t(epoch) << 32) | uint64_t(block0_ + k));
+      for (int i = int(list.size()) - 1; i > 0; --i) std::swap(list[i], list[rng.uniform_int(0, i + 1)]);
+    }
+    for (int mb = 0; mb < minibatches; ++mb) {
+      const Clock::time_point t_gather = Clock::now();
+      const int64_t local_total = gather_minibatch(mb, minibatches);
+      m.t_targets += seconds_since(t_gather);
+      const Clock::time_point tp = mark("gather", t_gather);
+      const int64_t total = comm_->sum(local_total);
+      if (total == 0) continue;
+      train_minibatch(m, sums, epoch, mb, total, tp);
+    }
+  }
+  if (sums.stats[kCount] > 0) {
+    m.policy_loss = sums.stats[kPolicyLoss] / sums.stats[kCount];
+    m.value_loss = sums.stats[kValueLoss] / sums.stats[kCount];
+    m.entropy = sums.stats[kEntropy] / sums.stats[kCount];
+    m.approx_kl = sums.stats[kKl] / sums.stats[kCount];
+    m.clip_frac = sums.stats[kClipped] / sums.stats[kCount];
+  }
+  if (sums.updates > 0) m.grad_norm = sums.grad_norm / sums.updates;
+}
 
+int64_t Trainer::collect_chunks() {
   // Chunks holding at least one real agent-step, per update block of this rank's envs (the gradient groups:
   // each block's share of a minibatch is summed in order, the blocks in block order, across ranks too).
+  Buffers& b = *buf_;
+  const int G = rows_, bptt = cfg_.bptt, chunks_per_row = rollout_steps_ / bptt;
   const int A = G / (env1_ - env0_);
   const int K = block1_ - block0_;
   b.block_chunks.resize(size_t(K));
@@ -600,9 +652,12 @@ void Trainer::update(IterationMetrics& m) {
     }
     local_chunks += int64_t(list.size());
   }
-  const int64_t n_chunks = comm_->sum(local_chunks);
-  if (n_chunks == 0) return;
-  const int minibatches = cfg_.minibatches_for(n_chunks);
+  return local_chunks;
+}
+
+void Trainer::size_minibatch(int minibatches) {
+  Buffers& b = *buf_;
+  const int bptt = cfg_.bptt, heads = net_->heads().num_heads(), sw = net_->state_width();
   int max_seq = 0;
   for (const std::vector<int32_t>& list : b.block_chunks)
     max_seq += (int(list.size()) + minibatches - 1) / minibatches;
@@ -617,126 +672,106 @@ void Trainer::update(IterationMetrics& m) {
     b.mb_state_p.resize(size_t(max_seq) * sw);
     b.mb_state_v.resize(size_t(max_seq) * sw);
   }
+}
 
-  const float clip = float(cfg_.clip);
-  const double ent_coef = cfg_.entropy_coef, v_coef = cfg_.value_coef;
+int64_t Trainer::gather_minibatch(int mb, int minibatches) {
+  Buffers& b = *buf_;
+  const int G = rows_, bptt = cfg_.bptt, heads = net_->heads().num_heads(), sw = net_->state_width();
+  // Block k's share: its chunks [n_k mb / M, n_k (mb + 1) / M).
+  b.mb_chunks.clear();
+  b.mb_groups.assign(1, 0);
+  for (const std::vector<int32_t>& list : b.block_chunks) {
+    const int64_t n = int64_t(list.size());
+    b.mb_chunks.insert(b.mb_chunks.end(), list.begin() + n * mb / minibatches,
+                       list.begin() + n * (mb + 1) / minibatches);
+    b.mb_groups.push_back(int(b.mb_chunks.size()));
+  }
+  const int S = int(b.mb_chunks.size());
+  // The chunks' rows, sequence-major; their targets and entering states gathered.
+  tbb::parallel_for(tbb::blocked_range<int>(0, S, 8), [&](const tbb::blocked_range<int>& r) {
+    for (int k = r.begin(); k < r.end(); ++k) {
+      const int id = b.mb_chunks[size_t(k)];
+      const int c = id / G, g = id % G;
+      std::memcpy(b.mb_state_p.data() + size_t(k) * sw, b.state_p.data() + (size_t(c) * G + g) * sw,
+                  sizeof(float) * sw);
+      std::memcpy(b.mb_state_v.data() + size_t(k) * sw, b.state_v.data() + (size_t(c) * G + g) * sw,
+                  sizeof(float) * sw);
+      for (int j = 0; j < bptt; ++j) {
+        const size_t src = size_t(c * bptt + j) * G + g, dst = size_t(k) * bptt + j;
+        b.mb_index[dst] = int32_t(src);
+        std::memcpy(b.mb_actions.data() + dst * heads, b.actions.data() + src * heads,
+                    sizeof(int32_t) * heads);
+        b.mb_logp[dst] = b.logp[src];
+        b.mb_adv[dst] = b.adv[src];
+        b.mb_ret[dst] = b.ret_norm[src];
+        b.mb_mask[dst] = b.mask[src];
+      }
+    }
+  });
+  int64_t local_total = 0;
+  for (int i = 0; i < S * bptt; ++i) local_total += b.mb_mask[i];
+  return local_total;
+}
+
+void Trainer::train_minibatch(IterationMetrics& m, UpdateSums& sums, int epoch, int mb, int64_t total,
+                              Clock::time_point tp) {
+  Buffers& b = *buf_;
+  const int S = int(b.mb_chunks.size());
+  const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
   const nn::CategoricalHeads& hd = net_->heads();
+  const PpoMinibatch mbatch{.actions = b.mb_actions.data(),
+                            .old_logp = b.mb_logp.data(),
+                            .advantages = b.mb_adv.data(),
+                            .returns = b.mb_ret.data(),
+                            .mask = b.mb_mask.data(),
+                            .clip = float(cfg_.clip),
+                            .entropy_coef = cfg_.entropy_coef,
+                            .value_coef = cfg_.value_coef,
+                            .inv_total = 1.0 / double(total)};
+  nn::LossFn loss = [&](const nn::ChunkOutputs& out, const nn::ChunkGrads& g, std::span<double> st) {
+    ppo_chunk_loss(hd, mbatch, out, g, b.loss_scratch.local(), st);
+    if (poison) g.d_value[0] = std::numeric_limits<float>::quiet_NaN();
+  };
   nn::ObsBatch mb_obs = b.obs.batch();
   mb_obs.index = b.mb_index.data();
-  double sums[kNumStats] = {};
-  double grad_norm_sum = 0;
-  int updates = 0;
-
-  for (int epoch = 0; epoch < cfg_.epochs; ++epoch) {
-    for (int k = 0; k < K; ++k) {
-      std::vector<int32_t>& list = b.block_chunks[size_t(k)];
-      physics::Rng rng(cfg_.seed ^ kShuffleStream, uint64_t(iteration_),
-                       (uint64_t(epoch) << 32) | uint64_t(block0_ + k));
-      for (int i = int(list.size()) - 1; i > 0; --i) std::swap(list[i], list[rng.uniform_int(0, i + 1)]);
-    }
-    for (int mb = 0; mb < minibatches; ++mb) {
-      // Block k's share: its chunks [n_k mb / M, n_k (mb + 1) / M).
-      b.mb_chunks.clear();
-      b.mb_groups.assign(1, 0);
-      for (const std::vector<int32_t>& list : b.block_chunks) {
-        const int64_t n = int64_t(list.size());
-        b.mb_chunks.insert(b.mb_chunks.end(), list.begin() + n * mb / minibatches,
-                           list.begin() + n * (mb + 1) / minibatches);
-        b.mb_groups.push_back(int(b.mb_chunks.size()));
-      }
-      const int S = int(b.mb_chunks.size());
-      // The chunks' rows, sequence-major; their targets and entering states gathered.
-      const Clock::time_point t_gather = Clock::now();
-      tbb::parallel_for(tbb::blocked_range<int>(0, S, 8), [&](const tbb::blocked_range<int>& r) {
-        for (int k = r.begin(); k < r.end(); ++k) {
-          const int id = b.mb_chunks[size_t(k)];
-          const int c = id / G, g = id % G;
-          std::memcpy(b.mb_state_p.data() + size_t(k) * sw, b.state_p.data() + (size_t(c) * G + g) * sw,
-                      sizeof(float) * sw);
-          std::memcpy(b.mb_state_v.data() + size_t(k) * sw, b.state_v.data() + (size_t(c) * G + g) * sw,
-                      sizeof(float) * sw);
-          for (int j = 0; j < bptt; ++j) {
-            const size_t src = size_t(c * bptt + j) * G + g, dst = size_t(k) * bptt + j;
-            b.mb_index[dst] = int32_t(src);
-            std::memcpy(b.mb_actions.data() + dst * heads, b.actions.data() + src * heads,
-                        sizeof(int32_t) * heads);
-            b.mb_logp[dst] = b.logp[src];
-            b.mb_adv[dst] = b.adv[src];
-            b.mb_ret[dst] = b.ret_norm[src];
-            b.mb_mask[dst] = b.mask[src];
-          }
-        }
-      });
-      int64_t local_total = 0;
-      for (int i = 0; i < S * bptt; ++i) local_total += b.mb_mask[i];
-      m.t_targets += seconds_since(t_gather);
-      Clock::time_point tp = mark("gather", t_gather);
-      const int64_t total = comm_->sum(local_total);
-      if (total == 0) continue;
-      const double inv_total = 1.0 / double(total);
-      const bool poison = cfg_.inject_nan_at > 0 && iteration_ + 1 == cfg_.inject_nan_at;
-
-      const PpoMinibatch mbatch{.actions = b.mb_actions.data(),
-                                .old_logp = b.mb_logp.data(),
-                                .advantages = b.mb_adv.data(),
-                                .returns = b.mb_ret.data(),
-                                .mask = b.mb_mask.data(),
-                                .clip = clip,
-                                .entropy_coef = ent_coef,
-                                .value_coef = v_coef,
-                                .inv_total = inv_total};
-      nn::LossFn loss = [&](const nn::ChunkOutputs& out, const nn::ChunkGrads& g, std::span<double> st) {
-        ppo_chunk_loss(hd, mbatch, out, g, b.loss_scratch.local(), st);
-        if (poison) g.d_value[0] = std::numeric_limits<float>::quiet_NaN();
-      };
-      net_->compute_groups(nn::ObsNormView::identity(), mb_obs, S, bptt, b.mb_state_p.data(),
-                           b.mb_state_v.data(), loss, kNumStats, b.mb_groups);
-      m.t_backward += seconds_since(tp);
-      tp = mark("forward+backward", tp);
-      // The minibatch's gradient: every block's group in block order, through the ranks in rank order; its
-      // statistics: every chunk's in chunk order.
-      float* grads = net_->params().grads();
-      comm_->chain_sum(
-          net_->params().buffer_floats(),
-          [&](size_t begin, size_t end, const float* before, float* out) {
-            tbb::parallel_for(
-                tbb::blocked_range<size_t>(begin, end, 1 << 14), [&](const tbb::blocked_range<size_t>& r) {
-                  net_->sum_groups(r.begin(), r.end(),
-                                   before == nullptr ? nullptr : before + (r.begin() - begin), out);
-                });
-          },
-          grads);
-      std::vector<double>& all_stats = b.all_chunk_stats;
-      comm_->allgather(net_->chunk_stats(), all_stats);
-      double st[kNumStats] = {};
-      for (size_t c = 0; c < all_stats.size(); c += kNumStats)
-        for (int k = 0; k < kNumStats; ++k) st[k] += all_stats[c + size_t(k)];
-      m.t_backward += seconds_since(tp);
-      tp = Clock::now();
-      const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);
-      m.t_optimizer += seconds_since(tp);
-      mark("optimizer", tp);
-      bool finite = info.applied;
-      for (double v : st) finite = finite && std::isfinite(v);
-      if (!finite) {
-        throw NumericalError("iteration " + std::to_string(iteration_ + 1) + ", epoch " +
-                             std::to_string(epoch + 1) + ", minibatch " + std::to_string(mb + 1) +
-                             ": the loss or its gradient is not finite" + " (gradient norm " +
-                             std::to_string(info.grad_norm) + ")");
-      }
-      for (int k = 0; k < kNumStats; ++k) sums[k] += st[k];
-      grad_norm_sum += info.grad_norm;
-      ++updates;
-    }
+  net_->compute_groups(nn::ObsNormView::identity(), mb_obs, S, cfg_.bptt, b.mb_state_p.data(),
+                       b.mb_state_v.data(), loss, kNumStats, b.mb_groups);
+  m.t_backward += seconds_since(tp);
+  tp = mark("forward+backward", tp);
+  // The minibatch's gradient: every block's group in block order, through the ranks in rank order; its
+  // statistics: every chunk's in chunk order.
+  float* grads = net_->params().grads();
+  comm_->chain_sum(
+      net_->params().buffer_floats(),
+      [&](size_t begin, size_t end, const float* before, float* out) {
+        tbb::parallel_for(tbb::blocked_range<size_t>(begin, end, 1 << 14),
+                          [&](const tbb::blocked_range<size_t>& r) {
+                            net_->sum_groups(r.begin(), r.end(),
+                                             before == nullptr ? nullptr : before + (r.begin() - begin), out);
+                          });
+      },
+      grads);
+  std::vector<double>& all_stats = b.all_chunk_stats;
+  comm_->allgather(net_->chunk_stats(), all_stats);
+  double st[kNumStats] = {};
+  for (size_t c = 0; c < all_stats.size(); c += kNumStats)
+    for (int k = 0; k < kNumStats; ++k) st[k] += all_stats[c + size_t(k)];
+  m.t_backward += seconds_since(tp);
+  tp = Clock::now();
+  const nn::AdamStepInfo info = adam_->step(net_->params().values(), grads);
+  m.t_optimizer += seconds_since(tp);
+  mark("optimizer", tp);
+  bool finite = info.applied;
+  for (double v : st) finite = finite && std::isfinite(v);
+  if (!finite) {
+    throw NumericalError("iteration " + std::to_string(iteration_ + 1) + ", epoch " +
+                         std::to_string(epoch + 1) + ", minibatch " + std::to_string(mb + 1) +
+                         ": the loss or its gradient is not finite" + " (gradient norm " +
+                         std::to_string(info.grad_norm) + ")");
   }
-  if (sums[kCount] > 0) {
-    m.policy_loss = sums[kPolicyLoss] / sums[kCount];
-    m.value_loss = sums[kValueLoss] / sums[kCount];
-    m.entropy = sums[kEntropy] / sums[kCount];
-    m.approx_kl = sums[kKl] / sums[kCount];
-    m.clip_frac = sums[kClipped] / sums[kCount];
-  }
-  if (updates > 0) m.grad_norm = grad_norm_sum / updates;
+  for (int k = 0; k < kNumStats; ++k) sums.stats[k] += st[k];
+  sums.grad_norm += info.grad_norm;
+  ++sums.updates;
 }
 
 }  // namespace hns::ppo

@@ -170,8 +170,25 @@ class Trainer {
   static void check_values(const CheckpointState& st, const std::string& path);
   std::string checkpoint_payload() const;
   void rollout(IterationMetrics& m);
+  // The rollout's steps at step t: the observations into the buffer (normalised) and the normaliser sums,
+  // the masks, reset flags, entering LSTM states and uniforms (returns the real agents counted); the
+  // networks' actions and values; the rewards, episode ends and finished episodes' statistics. Then, after
+  // the last step, the episodes the next rollout starts and the iteration's episode statistics.
+  int64_t observe_step(int t);
+  void infer_step(int t);
+  void record_step(int t);
+  void finish_rollout(IterationMetrics& m, int64_t simulated);
   void compute_targets(IterationMetrics& m);
   void update(IterationMetrics& m);
+  // The update's steps: this rank's valid chunks per block (returns their count); the minibatch buffers
+  // sized for the largest minibatch; minibatch mb's chunks gathered (returns its real agent-steps here); one
+  // minibatch's forward, backward, gradient sum and Adam step, its statistics added to `sums`.
+  struct UpdateSums;
+  int64_t collect_chunks();
+  void size_minibatch(int minibatches);
+  int64_t gather_minibatch(int mb, int minibatches);
+  void train_minibatch(IterationMetrics& m, UpdateSums& sums, int epoch, int mb, int64_t total,
+                       std::chrono::steady_clock::time_point tp);
   void restart_envs();
   // First env of update block k (k = blocks_: the end).
   int block_env(int k) const;

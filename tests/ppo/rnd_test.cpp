@@ -9,6 +9,7 @@
 #include <oneapi/tbb/task_arena.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "../nn/test_util.hpp"
+#include "nn/obs_store.hpp"
 #include "ppo/trainer.hpp"
 #include "ppo_test_util.hpp"
 
@@ -25,30 +27,26 @@ namespace {
 using nn::testing::random_mask;
 using nn::testing::random_vector;
 
-// Random observations of the tiny network's shape (every entity type present, some masked).
-struct Rows {
-  std::vector<float> self, lidar, agents, boxes, ramps, sites, agents_p, boxes_p, ramps_p, sites_p;
-  Rows(const nn::ObsShape& s, int n, uint64_t seed) {
-    self = random_vector(size_t(n) * s.self_features, seed + 1, -2, 2);
-    lidar = random_vector(size_t(n) * s.lidar_rays, seed + 2, 0, 6);
-    agents = random_vector(size_t(n) * s.num_other_agents() * s.agent_features, seed + 3, -2, 2);
-    boxes = random_vector(size_t(n) * s.max_boxes * s.box_features, seed + 4, -2, 2);
-    ramps = random_vector(size_t(n) * s.max_ramps * s.ramp_features, seed + 5, -2, 2);
-    sites = random_vector(size_t(n) * s.max_sites * s.site_features, seed + 6, -2, 2);
-    agents_p = random_mask(size_t(n) * s.num_other_agents(), seed + 7, 0.8);
-    boxes_p = random_mask(size_t(n) * s.max_boxes, seed + 8, 0.8);
-    ramps_p = random_mask(size_t(n) * s.max_ramps, seed + 9, 0.8);
-    sites_p = random_mask(size_t(n) * s.max_sites, seed + 10, 0.8);
-  }
-  nn::ObsBatch batch() const {
-    nn::ObsBatch b;
-    b.self = self.data(), b.lidar = lidar.data(), b.agents = agents.data(), b.boxes = boxes.data();
-    b.ramps = ramps.data(), b.sites = sites.data();
-    b.agents_present = agents_p.data(), b.boxes_present = boxes_p.data(), b.ramps_present = ramps_p.data();
-    b.sites_present = sites_p.data();
-    return b;
-  }
-};
+// Random observations of the tiny network's shape (every entity type present, some masked): the features and
+// the value net's masks, which the RND networks read (the policy's masks and the resets stay 0).
+nn::ObsStore random_rows(const nn::ObsShape& s, int n, uint64_t seed) {
+  nn::ObsStore rows(s, size_t(n));
+  auto put = [](nn::FloatBuffer& dst, const std::vector<float>& v) {
+    ASSERT_EQ(v.size(), dst.size());
+    std::copy(v.begin(), v.end(), dst.data());
+  };
+  put(rows.self, random_vector(size_t(n) * s.self_features, seed + 1, -2, 2));
+  put(rows.lidar, random_vector(size_t(n) * s.lidar_rays, seed + 2, 0, 6));
+  put(rows.agents, random_vector(size_t(n) * s.num_other_agents() * s.agent_features, seed + 3, -2, 2));
+  put(rows.boxes, random_vector(size_t(n) * s.max_boxes * s.box_features, seed + 4, -2, 2));
+  put(rows.ramps, random_vector(size_t(n) * s.max_ramps * s.ramp_features, seed + 5, -2, 2));
+  put(rows.sites, random_vector(size_t(n) * s.max_sites * s.site_features, seed + 6, -2, 2));
+  put(rows.agents_present, random_mask(size_t(n) * s.num_other_agents(), seed + 7, 0.8));
+  put(rows.boxes_present, random_mask(size_t(n) * s.max_boxes, seed + 8, 0.8));
+  put(rows.ramps_present, random_mask(size_t(n) * s.max_ramps, seed + 9, 0.8));
+  put(rows.sites_present, random_mask(size_t(n) * s.max_sites, seed + 10, 0.8));
+  return rows;
+}
 
 // With the target's weights the predictor's error is exactly 0; with its output biases moved by d_k = k / 64
 // every row's error is mean_k d_k^2 = (sum of k^2 for k < 64) / 64^3 = 85344 / 262144.
@@ -58,7 +56,7 @@ TEST(Rnd, ErrorIsTheMeanSquaredDifferenceOfTheTwoNetworks) {
   EXPECT_EQ(rnd.config().lstm, 0);
   ASSERT_EQ(rnd.predictor().buffer_floats(), rnd.target().buffer_floats());
   const int n = 150;  // three chunks, the last one partial
-  const Rows rows(cfg.obs, n, 40);
+  const nn::ObsStore rows = random_rows(cfg.obs, n, 40);
   std::vector<float> err(n);
   rnd.errors(nn::ObsNormView::identity(), rows.batch(), n, err.data());
   for (float e : err) EXPECT_GT(e, 0.01f) << "two random networks disagree";
@@ -80,7 +78,7 @@ TEST(Rnd, PredictorGradientMatchesFiniteDifferences) {
   const nn::NetConfig cfg = nn::testing::tiny_net_config();
   Rnd rnd(cfg, 6, 0.0f);  // lr 0: the step leaves the weights, the gradient stays in grads()
   const int n = 150;      // more than two 64-row chunks: the chunks' and groups' sums are checked too
-  const Rows rows(cfg.obs, n, 41);
+  const nn::ObsStore rows = random_rows(cfg.obs, n, 41);
   std::vector<int32_t> all(n);
   for (int i = 0; i < n; ++i) all[size_t(i)] = i;
   auto loss = [&]() {
@@ -110,13 +108,14 @@ TEST(Rnd, PredictorGradientMatchesFiniteDifferences) {
 TEST(Rnd, TrainingShrinksTheErrorOfVisitedRowsAndIsBitIdenticalAcrossThreads) {
   const nn::NetConfig cfg = nn::testing::tiny_net_config();
   const int n = 200;
-  const Rows seen(cfg.obs, n, 50);
-  Rows unseen(cfg.obs, n, 60);  // another part of the observation space: what the agents never visited
-  for (float& v : unseen.self) v += 4.0f;
-  for (float& v : unseen.boxes) v -= 4.0f;
+  const nn::ObsStore seen = random_rows(cfg.obs, n, 50);
+  nn::ObsStore unseen =
+      random_rows(cfg.obs, n, 60);  // another part of the observation space: what the agents never visited
+  for (float& v : unseen.self.span()) v += 4.0f;
+  for (float& v : unseen.boxes.span()) v -= 4.0f;
   std::vector<int32_t> all(n);
   for (int i = 0; i < n; ++i) all[size_t(i)] = i;
-  auto mean_error = [&](const Rnd& r, const Rows& rows) {
+  auto mean_error = [&](const Rnd& r, const nn::ObsStore& rows) {
     std::vector<float> err(n);
     r.errors(nn::ObsNormView::identity(), rows.batch(), n, err.data());
     double s = 0;

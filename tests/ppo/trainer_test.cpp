@@ -21,7 +21,7 @@
 
 #include "nn/precision.hpp"
 #include "physics/scene.hpp"
-#include "ppo/obs_arrays.hpp"
+#include "ppo/batch_obs.hpp"
 #include "ppo/policy.hpp"
 
 namespace hns::ppo {
@@ -289,7 +289,7 @@ TEST(Trainer, RunsAnIterationWithFiniteDiagnostics) {
 // The rollout normalises each key of a step's observations with that key's statistics as it copies them:
 // the network acting on those rows (identity view) gives the bits of the network acting on the raw rows and
 // normalising them itself.
-TEST(ObsArrays, CopyStepNormalisesEachKeyWithItsStatistics) {
+TEST(ObsStore, CopyStepNormalisesEachKeyWithItsStatistics) {
   TrainConfig c = tiny_quadrant();
   Trainer t(c);
   t.iterate();  // a normaliser that is not the identity
@@ -299,14 +299,12 @@ TEST(ObsArrays, CopyStepNormalisesEachKeyWithItsStatistics) {
   const nn::ObsNormView view = t.obs_normalizer().view();
   ASSERT_NE(view.mean[nn::kObsSelf][0], 0.0f);
   const StepObsView step = StepObsView::of(t.sim().state());
-  ObsArrays normalised, raw;
-  normalised.allocate(shape, size_t(G));
-  raw.allocate(shape, size_t(G));
-  normalised.copy_step(step, shape, size_t(G), 0, &view);
-  raw.copy_step(step, shape, size_t(G), 0);
+  nn::ObsStore normalised(shape, size_t(G)), raw(shape, size_t(G));
+  normalised.copy_step(step, size_t(G), 0, &view);
+  raw.copy_step(step, size_t(G), 0);
   EXPECT_NE(std::memcmp(normalised.self.data(), raw.self.data(), sizeof(float) * normalised.self.size()), 0);
   const int sw = net.state_width(), nh = net.heads().num_heads(), nl = net.heads().num_logits();
-  auto logits_of = [&](const ObsArrays& o, const nn::ObsNormView& v) {
+  auto logits_of = [&](const nn::ObsStore& o, const nn::ObsNormView& v) {
     std::vector<float> ps(size_t(G) * sw, 0.0f), vs = ps, logits(size_t(G) * nl);
     const std::vector<float> uniforms(size_t(G) * nh, 0.5f);
     std::vector<int32_t> actions(size_t(G) * nh);

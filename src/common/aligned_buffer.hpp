@@ -1,4 +1,6 @@
-// A fixed-size, 64-byte aligned, zero-initialised array: the storage of every structure-of-arrays field.
+// A fixed-size, 64-byte aligned, zero-initialised, move-only array: the storage of every batch state field
+// (batch::BatchState) and of the networks' arrays (nn::FloatBuffer is AlignedBuffer<float>). Header-only and
+// free of any hns library, so both layers use this one type without depending on each other.
 #pragma once
 
 #include <cstddef>
@@ -7,7 +9,7 @@
 #include <new>
 #include <span>
 
-namespace hns::batch {
+namespace hns {
 
 template <class T>
 class AlignedBuffer {
@@ -22,9 +24,19 @@ class AlignedBuffer {
     other.data_ = nullptr;
     other.size_ = 0;
   }
+  AlignedBuffer& operator=(AlignedBuffer&& other) noexcept {
+    if (this != &other) {
+      std::free(data_);
+      data_ = other.data_;
+      size_ = other.size_;
+      other.data_ = nullptr;
+      other.size_ = 0;
+    }
+    return *this;
+  }
   ~AlignedBuffer() { std::free(data_); }
 
-  // Reallocates to n zeroed elements.
+  // Reallocates to n zeroed elements (the allocation rounded up to whole 64-byte lines, zeroed too).
   void resize(size_t n) {
     std::free(data_);
     data_ = nullptr;
@@ -35,7 +47,9 @@ class AlignedBuffer {
     if (data_ == nullptr) throw std::bad_alloc();
     std::memset(static_cast<void*>(data_), 0, bytes);
   }
-  void fill_zero() { std::memset(static_cast<void*>(data_), 0, size_ * sizeof(T)); }
+  void fill_zero() {
+    if (size_ > 0) std::memset(static_cast<void*>(data_), 0, size_ * sizeof(T));
+  }
 
   T* data() { return data_; }
   const T* data() const { return data_; }
@@ -50,4 +64,4 @@ class AlignedBuffer {
   size_t size_ = 0;
 };
 
-}  // namespace hns::batch
+}  // namespace hns
