@@ -344,16 +344,12 @@ std::string page_html(const Summary& s, const json& settings) {
   return o.str();
 }
 
-int run_eval(const EvalOptions& opt) {
-  // Everything is checked before any work starts.
-  if (opt.out.empty())
-    throw physics::ConfigError("--out DIR is required (where eval.json, eval.md, eval.html go)");
-  if (opt.resume && opt.overwrite) throw physics::ConfigError("--resume and --overwrite: give one");
-  Summary s;
-  s.tasks = split_list(opt.tasks);
-  if (s.tasks.empty()) throw physics::ConfigError("--tasks '" + opt.tasks + "': no task given");
+// --tasks: transfer tasks of the scene registry, each once.
+std::vector<std::string> parse_tasks(const std::string& list) {
+  std::vector<std::string> tasks = split_list(list);
+  if (tasks.empty()) throw physics::ConfigError("--tasks '" + list + "': no task given");
   const std::string transfer = physics::scene_list(", ", physics::SceneFamily::kTransfer);
-  for (const std::string& t : s.tasks) {
+  for (const std::string& t : tasks) {
     const physics::SceneInfo* scene = physics::find_scene(t);
     if (scene == nullptr)
       throw physics::ConfigError("--tasks: '" + t + "' is not a scene of hns; the transfer tasks are " +
@@ -363,11 +359,14 @@ int run_eval(const EvalOptions& opt) {
                                  "' is a probe of a frozen policy, not a task to train: run hns counting");
     if (scene->family != physics::SceneFamily::kTransfer)
       throw physics::ConfigError("--tasks: '" + t + "' is not a transfer task (" + transfer + ")");
-    if (std::count(s.tasks.begin(), s.tasks.end(), t) > 1)
+    if (std::count(tasks.begin(), tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
   }
-  std::vector<Condition> conditions = parse_conditions("scratch", opt.pretrained, opt.model);
+  return tasks;
+}
 
+// The training config every run shares (its scene, seed and checkpoint are the run's own).
+ppo::TrainConfig base_config(const EvalOptions& opt) {
   ppo::TrainConfig base;
   base.model = opt.model;
   base.envs = opt.envs;
@@ -390,25 +389,28 @@ int run_eval(const EvalOptions& opt) {
   // The precision that runs here (auto resolved, so eval.json records it and a resume on a CPU that would
   // resolve it otherwise is refused); --set precision=bf16 on a CPU without it: refused now (exit 2).
   base.precision = std::string(nn::precision_name(base.resolve_precision()));
-  if (opt.seeds < 1 || opt.seeds > 100) {
-    throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
-  }
-  // What a resumed evaluation must share with the one it continues: every run's training config but the
-  // scene, seed and checkpoint (the defaults of this version of hns eval included), and the random
-  // policy's episodes. Tasks, seeds and --pretrained conditions may be added; a resume that does not name
-  // a recorded task or condition runs it too.
+  return base;
+}
+
+// What a resumed evaluation must share with the one it continues: every run's training config but the
+// scene, seed and checkpoint (the defaults of this version of hns eval included), and the random policy's
+// episodes. Tasks, seeds and --pretrained conditions may be added; a resume that does not name a recorded
+// task or condition runs it too.
+json shared_settings(const EvalOptions& opt, const ppo::TrainConfig& base) {
   ppo::TrainConfig shared = base;
   shared.threads = 0;
   shared.init_from = "(per condition)";
-  json settings = {{"model", opt.model},
-                   {"envs", opt.envs},
-                   {"iterations", opt.iterations},
-                   {"random_episodes", opt.random_episodes},
-                   {"sets", opt.sets},
-                   {"train_config", json::parse(shared.to_json())}};
+  return {{"model", opt.model},
+          {"envs", opt.envs},
+          {"iterations", opt.iterations},
+          {"random_episodes", opt.random_episodes},
+          {"sets", opt.sets},
+          {"train_config", json::parse(shared.to_json())}};
+}
 
-  const fs::path dir(opt.out);
-  const fs::path eval_json = dir / "eval.json";
+// --out may take the evaluation: a folder (or nothing yet) whose eval files hns may replace; eval.md and
+// eval.html without eval.json are not an evaluation to resume, and not replaced unasked either.
+void check_out_folder(const EvalOptions& opt, const fs::path& dir, const fs::path& eval_json) {
   std::error_code ec;
   if (fs::exists(dir, ec) && !fs::is_directory(dir, ec))
     throw physics::ConfigError("--out " + opt.out + ": exists and is not a folder");
@@ -416,7 +418,6 @@ int run_eval(const EvalOptions& opt) {
   if (opt.resume && opt.overwrite)
     throw physics::ConfigError(
         "--resume and --overwrite: give one (--resume continues the evaluation in --out)");
-  // eval.md and eval.html without eval.json are not an evaluation to resume, and not replaced unasked either.
   for (const char* name : {"eval.json", "eval.md", "eval.html"}) {
     if (std::string(name) != "eval.json" && !fs::exists(eval_json, ec) &&
         fs::exists(fs::symlink_status(dir / name, ec)) && !opt.overwrite) {
@@ -429,84 +430,82 @@ int run_eval(const EvalOptions& opt) {
       throw physics::ConfigError(e.what());
     }
   }
-  if (fs::exists(eval_json, ec)) {
-    if (!opt.resume && !opt.overwrite) {
-      throw physics::ConfigError(
-          "--out " + opt.out +
-          " holds an evaluation (eval.json): --resume continues it, --overwrite starts over");
-    }
-    if (opt.resume) {
-      try {
-        const std::string text = ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:");
-        if (!replay::json_nesting_within(text)) {
-          throw physics::ConfigError("--resume " + opt.out + ": eval.json nests more than " +
-                                     std::to_string(replay::kMaxJsonDepth) + " levels deep");
-        }
-        const json saved = json::parse(text);
-        json old = saved.at("settings");
-        const json recorded = old.value("pretrained", json::object());
-        old.erase("pretrained");
-        // An evaluation from before the precision key trained every run in fp32.
-        if (old.contains("train_config") && old["train_config"].is_object() &&
-            !old["train_config"].contains("precision"))
-          old["train_config"]["precision"] = "fp32";
-        if (old != settings) {
-          throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
-                                     " differ from these " + settings.dump());
-        }
-        for (const auto& item : recorded.items()) {
-          const std::string label = item.key();
-          const json& entry = item.value();
-          auto given = std::find_if(conditions.begin(), conditions.end(),
-                                    [&](const Condition& c) { return c.label == label; });
-          const std::string path = entry.at("path").get<std::string>();
-          if (given == conditions.end()) {
-            try {
-              conditions.push_back(parse_conditions("", {label + "=" + path}, opt.model).back());
-            } catch (const physics::ConfigError& e) {
-              throw physics::ConfigError("--resume " + opt.out + ": recorded condition " + label + ": " +
-                                         e.what());
-            }
-            given = conditions.end() - 1;
-          } else if (given->checkpoint != path) {
-            throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " + path +
-                                       ", now " + given->checkpoint);
-          }
-          if (given->fingerprint != entry.at("fnv1a64").get<std::string>()) {
-            throw physics::ConfigError("--resume " + opt.out + ": the checkpoint of condition " + label +
-                                       " (" + path + ") changed since its first runs");
-          }
-        }
-        for (auto& [task, value] : saved.at("random").items()) {
-          s.random[task] = value.get<double>();
-          if (std::find(s.tasks.begin(), s.tasks.end(), task) == s.tasks.end()) s.tasks.push_back(task);
-        }
-        for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
-      } catch (const json::exception& e) {
-        throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
-      } catch (const ppo::FileError& e) {
-        throw physics::ConfigError(e.what());
-      } catch (const std::system_error& e) {
-        throw physics::ConfigError(e.what());
-      }
-    }
-  } else if (opt.resume) {
-    throw physics::ConfigError("--resume " + opt.out + ": no eval.json there");
-  }
-  for (const Condition& c : conditions) s.conditions.push_back(c.label);
-  json pretrained = json::object();
-  for (const Condition& c : conditions) {
-    if (!c.checkpoint.empty()) pretrained[c.label] = {{"path", c.checkpoint}, {"fnv1a64", c.fingerprint}};
-  }
-  settings["pretrained"] = pretrained;
+}
 
+// The conditions an evaluation recorded: each must be the checkpoint it was (added to `conditions` where
+// this resume does not name it).
+void check_recorded_conditions(const EvalOptions& opt, const json& recorded,
+                               std::vector<Condition>& conditions) {
+  for (const auto& item : recorded.items()) {
+    const std::string label = item.key();
+    const json& entry = item.value();
+    auto given = std::find_if(conditions.begin(), conditions.end(),
+                              [&](const Condition& c) { return c.label == label; });
+    const std::string path = entry.at("path").get<std::string>();
+    if (given == conditions.end()) {
+      try {
+        conditions.push_back(parse_conditions("", {label + "=" + path}, opt.model).back());
+      } catch (const physics::ConfigError& e) {
+        throw physics::ConfigError("--resume " + opt.out + ": recorded condition " + label + ": " + e.what());
+      }
+      given = conditions.end() - 1;
+    } else if (given->checkpoint != path) {
+      throw physics::ConfigError("--resume " + opt.out + ": --pretrained " + label + " was " + path +
+                                 ", now " + given->checkpoint);
+    }
+    if (given->fingerprint != entry.at("fnv1a64").get<std::string>()) {
+      throw physics::ConfigError("--resume " + opt.out + ": the checkpoint of condition " + label + " (" +
+                                 path + ") changed since its first runs");
+    }
+  }
+}
+
+// --resume: the recorded evaluation in eval.json, which must have these settings; its random returns and
+// runs go into `s`, its tasks and conditions are added.
+void read_evaluation(const EvalOptions& opt, const fs::path& eval_json, const json& settings,
+                     std::vector<Condition>& conditions, Summary& s) {
+  try {
+    const std::string text = ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:");
+    if (!replay::json_nesting_within(text)) {
+      throw physics::ConfigError("--resume " + opt.out + ": eval.json nests more than " +
+                                 std::to_string(replay::kMaxJsonDepth) + " levels deep");
+    }
+    const json saved = json::parse(text);
+    json old = saved.at("settings");
+    const json recorded = old.value("pretrained", json::object());
+    old.erase("pretrained");
+    // An evaluation from before the precision key trained every run in fp32.
+    if (old.contains("train_config") && old["train_config"].is_object() &&
+        !old["train_config"].contains("precision"))
+      old["train_config"]["precision"] = "fp32";
+    if (old != settings) {
+      throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
+                                 " differ from these " + settings.dump());
+    }
+    check_recorded_conditions(opt, recorded, conditions);
+    for (auto& [task, value] : saved.at("random").items()) {
+      s.random[task] = value.get<double>();
+      if (std::find(s.tasks.begin(), s.tasks.end(), task) == s.tasks.end()) s.tasks.push_back(task);
+    }
+    for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
+  } catch (const json::exception& e) {
+    throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
+  } catch (const ppo::FileError& e) {
+    throw physics::ConfigError(e.what());
+  } catch (const std::system_error& e) {
+    throw physics::ConfigError(e.what());
+  }
+}
+
+// Each task's runs fit this machine's memory, and each checkpoint fits each task (model, entity types):
+// tried on a one-env trainer now, not after hours of other runs.
+void check_tasks_fit(const Summary& s, const ppo::TrainConfig& base,
+                     const std::vector<Condition>& conditions) {
   for (const std::string& t : s.tasks) {
     ppo::TrainConfig c = base;
     c.scene = t;
     c.validate();
     check_memory("hns eval --tasks " + t + " --envs " + std::to_string(c.envs), c.estimated_bytes());
-    // Each checkpoint must fit each task (model, entity types): tried on a one-env trainer now, not after
-    // hours of other runs.
     c.envs = 1;
     for (const Condition& cond : conditions) {
       if (cond.checkpoint.empty()) continue;
@@ -519,6 +518,67 @@ int run_eval(const EvalOptions& opt) {
       }
     }
   }
+}
+
+// One training run of the evaluation: `iterations` iterations of task t from the condition's checkpoint (or
+// from scratch), with its returns per iteration.
+RunRecord train_run(const ppo::TrainConfig& base, const std::string& t, const Condition& cond, int seed) {
+  ppo::TrainConfig c = base;
+  c.scene = t;
+  c.seed = uint64_t(seed);
+  c.init_from = cond.checkpoint;
+  ppo::Trainer trainer(c);
+  if (!cond.checkpoint.empty()) trainer.initialize_from(cond.checkpoint);
+  RunRecord rec{t, cond.label, seed, {}, {}, 0};
+  for (int i = 1; i <= c.iterations; ++i) {
+    const ppo::IterationMetrics m = trainer.iterate();
+    rec.returns.push_back(m.hider_reward);
+    rec.agent_steps.push_back(m.agent_steps);
+    rec.seconds += m.seconds;
+    if (i % 10 == 0 || i == c.iterations) {
+      std::printf("  %s / %s / seed %d: iteration %d/%d, return %.3f, %.0f agent-steps/s\n", t.c_str(),
+                  cond.label.c_str(), seed, i, c.iterations, m.hider_reward, m.steps_per_s);
+      std::fflush(stdout);
+    }
+  }
+  return rec;
+}
+
+int run_eval(const EvalOptions& opt) {
+  // Everything is checked before any work starts.
+  if (opt.out.empty())
+    throw physics::ConfigError("--out DIR is required (where eval.json, eval.md, eval.html go)");
+  if (opt.resume && opt.overwrite) throw physics::ConfigError("--resume and --overwrite: give one");
+  Summary s;
+  s.tasks = parse_tasks(opt.tasks);
+  std::vector<Condition> conditions = parse_conditions("scratch", opt.pretrained, opt.model);
+  const ppo::TrainConfig base = base_config(opt);
+  if (opt.seeds < 1 || opt.seeds > 100) {
+    throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
+  }
+  json settings = shared_settings(opt, base);
+
+  const fs::path dir(opt.out);
+  const fs::path eval_json = dir / "eval.json";
+  check_out_folder(opt, dir, eval_json);
+  std::error_code ec;
+  if (fs::exists(eval_json, ec)) {
+    if (!opt.resume && !opt.overwrite) {
+      throw physics::ConfigError(
+          "--out " + opt.out +
+          " holds an evaluation (eval.json): --resume continues it, --overwrite starts over");
+    }
+    if (opt.resume) read_evaluation(opt, eval_json, settings, conditions, s);
+  } else if (opt.resume) {
+    throw physics::ConfigError("--resume " + opt.out + ": no eval.json there");
+  }
+  for (const Condition& c : conditions) s.conditions.push_back(c.label);
+  json pretrained = json::object();
+  for (const Condition& c : conditions) {
+    if (!c.checkpoint.empty()) pretrained[c.label] = {{"path", c.checkpoint}, {"fnv1a64", c.fingerprint}};
+  }
+  settings["pretrained"] = pretrained;
+  check_tasks_fit(s, base, conditions);
   fs::create_directories(dir, ec);
   if (ec) throw physics::ConfigError("--out " + opt.out + ": cannot create the folder: " + ec.message());
 
@@ -554,25 +614,7 @@ int run_eval(const EvalOptions& opt) {
           return r.task == t && r.condition == cond.label && r.seed == seed;
         });
         if (done) continue;
-        ppo::TrainConfig c = base;
-        c.scene = t;
-        c.seed = uint64_t(seed);
-        c.init_from = cond.checkpoint;
-        ppo::Trainer trainer(c);
-        if (!cond.checkpoint.empty()) trainer.initialize_from(cond.checkpoint);
-        RunRecord rec{t, cond.label, seed, {}, {}, 0};
-        for (int i = 1; i <= c.iterations; ++i) {
-          const ppo::IterationMetrics m = trainer.iterate();
-          rec.returns.push_back(m.hider_reward);
-          rec.agent_steps.push_back(m.agent_steps);
-          rec.seconds += m.seconds;
-          if (i % 10 == 0 || i == c.iterations) {
-            std::printf("  %s / %s / seed %d: iteration %d/%d, return %.3f, %.0f agent-steps/s\n", t.c_str(),
-                        cond.label.c_str(), seed, i, c.iterations, m.hider_reward, m.steps_per_s);
-            std::fflush(stdout);
-          }
-        }
-        s.runs.push_back(rec);
+        s.runs.push_back(train_run(base, t, cond, seed));
         write_all();
       }
     }

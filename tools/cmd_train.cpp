@@ -22,6 +22,7 @@
 
 #include "batch/host.hpp"
 #include "cli.hpp"
+#include "train_folder.hpp"
 #ifdef HNS_HAVE_MPI
 #include "ppo/mpi_comm.hpp"
 #endif
@@ -87,103 +88,6 @@ std::string duration_text(double s) {
   return buf;
 }
 
-// Keeps the rows of metrics.jsonl up to `iteration` (a run stopped between writing a row and a checkpoint
-// repeats those iterations on resume). Every whole row of an iteration the checkpoint covers is kept; a line
-// that is not a complete JSON object with an integer "iteration" (torn by a crash, or damaged) is dropped
-// and named on stderr, and the rows after it are kept. Returns the kept text.
-std::string truncate_metrics(const std::string& path, int64_t iteration) {
-  std::error_code ec;
-  if (!fs::exists(path, ec)) return "";
-  std::string text;
-  try {
-    text = ppo::read_regular_file(path, ppo::kMaxMetricsBytes, "--resume:");
-  } catch (const std::exception& e) {
-    throw physics::ConfigError(e.what());
-  }
-  std::string kept;
-  std::istringstream in(text);
-  std::string line;
-  std::vector<std::string> dropped;
-  for (int64_t number = 1; std::getline(in, line); ++number) {
-    // Only rows hns report reads (replay::is_iteration_record) are kept.
-    if (!replay::is_iteration_record(line)) {
-      if (!line.empty()) dropped.push_back(std::to_string(number));
-      continue;
-    }
-    const nlohmann::json row = nlohmann::json::parse(line);
-    if (row["iteration"].get<int64_t>() > iteration) continue;
-    kept += line + "\n";
-  }
-  if (!dropped.empty()) {
-    std::string lines;
-    for (const std::string& n : dropped) lines += (lines.empty() ? "" : ", ") + n;
-    std::fprintf(
-        stderr,
-        "hns train: warning: %s: line%s %s %s not a whole metrics row (torn by a crash or damaged) and "
-        "%s dropped; every other row up to iteration %lld is kept\n",
-        path.c_str(), dropped.size() > 1 ? "s" : "", lines.c_str(), dropped.size() > 1 ? "are" : "is",
-        dropped.size() > 1 ? "were" : "was", static_cast<long long>(iteration));
-  }
-  write_atomically(path, kept);
-  return kept;
-}
-
-// A run folder is marked by this file, which hns train writes into it; hns train only ever removes its own
-// files (checkpoint.bin, metrics.jsonl, replay.traj) from a marked folder and leaves everything else alone.
-constexpr const char* kRunMarker = ".hns-run";
-
-// Whether `dir` may take a run: it does not exist, is empty, carries the marker, or holds a checkpoint.bin
-// that loads as an hns checkpoint (a run of an hns from before the marker). Anything else is refused
-// (ConfigError), so that no file of the user's is ever removed or overwritten, --overwrite included.
-void check_run_folder(const std::string& dir) {
-  std::error_code ec;
-  if (!fs::exists(dir, ec)) return;
-  if (!fs::is_directory(dir, ec)) throw physics::ConfigError("--out " + dir + " exists and is not a folder");
-  if (fs::exists(fs::path(dir) / kRunMarker, ec)) return;
-  fs::directory_iterator it(dir, ec);
-  if (ec) throw physics::ConfigError("--out " + dir + " cannot be read: " + ec.message());
-  // Empty, but for the lock file a refused start may have left (it marks nothing: any hns train creates it).
-  while (it != fs::directory_iterator() && it->path().filename() == ppo::FolderLock::kFileName)
-    it.increment(ec);
-  if (it == fs::directory_iterator()) return;
-  // A run from before the marker: a whole, valid checkpoint (its checksum checked), not 8 bytes of magic.
-  const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
-  if (fs::is_regular_file(ckpt, ec)) {
-    try {
-      (void)ppo::Trainer::checkpoint_config(ckpt);
-      return;
-    } catch (const std::exception&) {
-      // not a checkpoint of hns: the folder is not a run folder
-    }
-  }
-  throw physics::ConfigError("--out " + dir + " holds '" + it->path().filename().string() +
-                             "' and is not a run folder of hns train: give a new or empty folder (hns never "
-                             "removes files it did not write, --overwrite included)");
-}
-
-// A folder holds a run only once a checkpoint is there (a run stopped before its first checkpoint, by a NaN
-// or a crash in its first iterations, cannot be resumed, so the same command starts it over): refused
-// unless `overwrite`.
-void check_no_run_unless(bool overwrite, const std::string& dir, const std::string& ckpt) {
-  std::error_code ec;
-  if (fs::exists(ckpt, ec) && !overwrite) {
-    throw physics::ConfigError("--out " + dir + " already holds a run: continue it with --resume " + dir +
-                               ", or start over with --overwrite");
-  }
-}
-
-// The run folder `dir`, locked for this process (ppo::FolderLock): a second hns train into a folder that a
-// running one uses is refused at start (ConfigError, exit 2), naming the running one's process.
-ppo::FolderLock lock_run_folder(const std::string& flag, const std::string& dir) {
-  try {
-    ppo::FolderLock lock(dir);
-    if (!lock.warning().empty()) std::fprintf(stderr, "hns train: warning: %s\n", lock.warning().c_str());
-    return lock;
-  } catch (const std::runtime_error& e) {
-    throw physics::ConfigError(flag + " " + e.what());
-  }
-}
-
 // Records `episodes` episodes with the trainer's current policy into `path` (atomically), for the report.
 void record_replay(const ppo::Trainer& trainer, const std::string& path, int episodes) {
   const ppo::TrainConfig& cfg = trainer.config();
@@ -205,14 +109,25 @@ void record_replay(const ppo::Trainer& trainer, const std::string& path, int epi
   writer.finish();
 }
 
-// The iterations of a rank other than 0: the same loop and stop decisions, no output.
-int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) {
+// Ctrl-C, SIGTERM and SIGUSR1 ask for a graceful stop (g_stop) until restore_stop_signals(). SIGUSR1 too:
+// mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM, often before the
+// checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
+void catch_stop_signals() {
   g_stop.store(false);
   std::signal(SIGINT, on_interrupt);
   std::signal(SIGTERM, on_interrupt);
-  // SIGUSR1 too: mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM,
-  // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
   std::signal(SIGUSR1, on_interrupt);
+}
+
+void restore_stop_signals() {
+  std::signal(SIGINT, SIG_DFL);
+  std::signal(SIGTERM, SIG_DFL);
+  std::signal(SIGUSR1, SIG_DFL);
+}
+
+// The iterations of a rank other than 0: the same loop and stop decisions, no output.
+int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) {
+  catch_stop_signals();
   int status = 0;
   while (trainer.iteration() < cfg.iterations) {
     try {
@@ -226,46 +141,61 @@ int follow(ppo::Trainer& trainer, const ppo::TrainConfig& cfg, ppo::Comm& comm) 
       break;
     }
   }
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
-  std::signal(SIGUSR1, SIG_DFL);
+  restore_stop_signals();
   return status;
 }
 
-// One process of a run (rank `comm.rank()` of `comm.size()`; a single process is rank 0 of 1). Every rank
-// validates the same arguments and builds its Trainer; rank 0 alone touches the run folder, prints and
-// writes.
-int run_train(const TrainOptions& opt, ppo::Comm& comm) {
-  const bool lead = comm.rank() == 0;
-  ppo::FolderLock lock;  // rank 0 holds the run folder while it runs
+// What the options make of a run, before its trainer exists: the config, the run folder and its files.
+struct RunSetup {
   ppo::TrainConfig cfg;
-  std::string dir = opt.out;
-  const bool resume = !opt.resume.empty();
+  ppo::FolderLock lock;  // rank 0 holds the run folder while it runs
+  std::string dir;
+  bool resume = false;
   std::string run_precision;  // resuming: the precision of the run's config.json
-  if (resume) {
+  std::string init_what;      // how the checkpoint to start from was named, for messages
+  std::string ckpt, metrics_path, replay_path, config_path;
+
+  void name_files() {
+    ckpt = (fs::path(dir) / "checkpoint.bin").string();
+    metrics_path = (fs::path(dir) / "metrics.jsonl").string();
+    replay_path = (fs::path(dir) / "replay.traj").string();
+    config_path = (fs::path(dir) / "config.json").string();
+  }
+};
+
+// The config a run starts from: a resumed run's config.json (its folder locked by rank 0), or --config.
+void read_run_config(const TrainOptions& opt, bool lead, RunSetup& run) {
+  ppo::TrainConfig& cfg = run.cfg;
+  run.dir = opt.out;
+  run.resume = !opt.resume.empty();
+  if (run.resume) {
     if (!opt.out.empty())
       throw physics::ConfigError("--out and --resume: give one (a resumed run stays in its folder)");
     if (!opt.config_file.empty())
       throw physics::ConfigError("--config and --resume: a resumed run keeps its config.json");
-    dir = opt.resume;
+    run.dir = opt.resume;
     if (opt.overwrite)
       throw physics::ConfigError(
           "--overwrite and --resume: give one (--resume continues the run in its folder)");
-    if (!fs::exists(fs::path(dir) / "checkpoint.bin")) {
+    if (!fs::exists(fs::path(run.dir) / "checkpoint.bin")) {
       // A run starting in the folder holds its lock before its first checkpoint: name that process.
-      if (lead && fs::exists(fs::path(dir) / ppo::FolderLock::kFileName))
-        (void)lock_run_folder("--resume", dir);
-      throw physics::ConfigError("--resume " + dir + ": no checkpoint.bin there");
+      if (lead && fs::exists(fs::path(run.dir) / ppo::FolderLock::kFileName))
+        (void)lock_run_folder("--resume", run.dir);
+      throw physics::ConfigError("--resume " + run.dir + ": no checkpoint.bin there");
     }
-    if (lead) lock = lock_run_folder("--resume", dir);
-    const std::string path = (fs::path(dir) / "config.json").string();
+    if (lead) run.lock = lock_run_folder("--resume", run.dir);
+    const std::string path = (fs::path(run.dir) / "config.json").string();
     cfg.merge_run_json(read_text(path, "--resume: run config"), path);
-    run_precision = cfg.precision;
+    run.run_precision = cfg.precision;
   } else if (!opt.config_file.empty()) {
     cfg.merge_json(read_text(opt.config_file, "--config"), opt.config_file);
   }
-  // Flags win over files. A key given both by its own flag and by --set is refused: one of the two values
-  // would be dropped unchecked.
+}
+
+// Flags win over files. A key given both by its own flag and by --set is refused: one of the two values
+// would be dropped unchecked.
+void apply_flags(const TrainOptions& opt, RunSetup& run) {
+  ppo::TrainConfig& cfg = run.cfg;
   const std::pair<const char*, bool> flag_keys[] = {{"scene", bool(opt.scene)},
                                                     {"model", bool(opt.model)},
                                                     {"iterations", bool(opt.iterations)},
@@ -295,41 +225,50 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   if (opt.seed) cfg.seed = parse_seed("--seed", *opt.seed);
   if (opt.precision) cfg.precision = *opt.precision;
   if (opt.init_from) {
-    if (resume)
+    if (run.resume)
       throw physics::ConfigError("--init-from and --resume: a resumed run continues from its own checkpoint");
     cfg.init_from = *opt.init_from;
   }
-  // The checkpoint a new run starts from: named by --init-from, or by init_from of --config or --set.
-  // Recorded as an absolute path, so the run's config.json names it from anywhere.
-  const std::string init_what = opt.init_from ? "--init-from " : "config key init_from = ";
-  if (!resume && !cfg.init_from.empty()) {
-    std::error_code ec;
-    if (fs::is_directory(cfg.init_from, ec))
-      throw physics::ConfigError(init_what + cfg.init_from + ": is a folder, not a checkpoint file");
-    if (!fs::exists(cfg.init_from, ec))
-      throw physics::ConfigError(init_what + cfg.init_from + ": no such checkpoint file");
-    if (!fs::is_regular_file(cfg.init_from, ec)) {
-      struct stat st {};
-      const std::string kind =
-          ::stat(cfg.init_from.c_str(), &st) == 0 ? ppo::special_file_kind(st.st_mode) : "not a regular file";
-      throw physics::ConfigError(init_what + cfg.init_from + " is " + kind + ", not a checkpoint file");
-    }
-    cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
+}
+
+// The checkpoint a new run starts from: named by --init-from, or by init_from of --config or --set.
+// Recorded as an absolute path, so the run's config.json names it from anywhere.
+void check_init_from(const TrainOptions& opt, RunSetup& run) {
+  ppo::TrainConfig& cfg = run.cfg;
+  run.init_what = opt.init_from ? "--init-from " : "config key init_from = ";
+  if (run.resume || cfg.init_from.empty()) return;
+  std::error_code ec;
+  if (fs::is_directory(cfg.init_from, ec))
+    throw physics::ConfigError(run.init_what + cfg.init_from + ": is a folder, not a checkpoint file");
+  if (!fs::exists(cfg.init_from, ec))
+    throw physics::ConfigError(run.init_what + cfg.init_from + ": no such checkpoint file");
+  if (!fs::is_regular_file(cfg.init_from, ec)) {
+    struct stat st {};
+    const std::string kind =
+        ::stat(cfg.init_from.c_str(), &st) == 0 ? ppo::special_file_kind(st.st_mode) : "not a regular file";
+    throw physics::ConfigError(run.init_what + cfg.init_from + " is " + kind + ", not a checkpoint file");
   }
-  cfg.validate();
-  // The precision that runs on this machine: auto is resolved here, so config.json (and the checkpoint) name
-  // fp32 or bf16, and a resumed run keeps its precision. bf16 on a CPU without it is refused, not emulated.
+  cfg.init_from = fs::absolute(cfg.init_from).lexically_normal().string();
+}
+
+// The precision that runs on this machine: auto is resolved here, so config.json (and the checkpoint) name
+// fp32 or bf16, and a resumed run keeps its precision. bf16 on a CPU without it is refused, not emulated.
+void resolve_precision(RunSetup& run) {
+  ppo::TrainConfig& cfg = run.cfg;
   try {
     cfg.precision = std::string(nn::precision_name(cfg.resolve_precision()));
   } catch (const physics::ConfigError&) {
-    if (!resume || cfg.precision != run_precision || nn::CpuFeatures::detect().avx512_bf16) throw;
+    if (!run.resume || cfg.precision != run.run_precision || nn::CpuFeatures::detect().avx512_bf16) throw;
     throw physics::ConfigError(
-        "--resume " + dir + ": the run trains in precision " + cfg.precision +
+        "--resume " + run.dir + ": the run trains in precision " + cfg.precision +
         " (its config.json), and this CPU has no AVX512-BF16 (bf16 is not emulated): resume it on a CPU that "
         "has it (AMD Zen 4 or later, Intel Cooper Lake, Sapphire Rapids or later); a run keeps its "
         "precision");
   }
-  // Every rank checks its machine for the ranks there (each counted with the largest share).
+}
+
+// Every rank checks its machine for the ranks there (each counted with the largest share).
+void check_run_memory(const ppo::TrainConfig& cfg, ppo::Comm& comm) {
   check_memory("envs = " + std::to_string(cfg.envs) +
                    (comm.size() > 1 ? " (" + std::to_string(cfg.envs_per_rank(comm.size())) +
                                           " on this rank of " + std::to_string(comm.size()) + ")"
@@ -337,117 +276,111 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
                    " with the " + cfg.model + " model and " + std::to_string(cfg.grad_groups) +
                    " gradient groups",
                cfg.estimated_bytes(comm.size()) * size_t(comm.ranks_on_this_machine()));
+}
 
-  if (dir.empty()) dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
-  const std::string ckpt = (fs::path(dir) / "checkpoint.bin").string();
-  const std::string metrics_path = (fs::path(dir) / "metrics.jsonl").string();
-  const std::string replay_path = (fs::path(dir) / "replay.traj").string();
-  if (!resume && lead) {
-    check_path_length("--out", dir);
-    check_run_folder(dir);
-    std::error_code ec;
-    if (fs::is_directory(dir, ec)) lock = lock_run_folder("--out", dir);
-    check_no_run_unless(opt.overwrite, dir, ckpt);
-  }
-  // The trainer, and the checkpoint it resumes or starts from, before the folder is created or any file of it
-  // removed: a refused checkpoint changes nothing.
-  ppo::Trainer trainer(cfg, &comm);
-  std::string initialized;
-  if (resume) {
+// The trainer's start: the checkpoint it resumes or starts from, loaded before the folder is created or any
+// file of it removed (a refused checkpoint changes nothing). Returns 0, or the exit status of a refusal;
+// `initialized` says what a start from another run's checkpoint carried.
+int load_start(ppo::Trainer& trainer, const RunSetup& run, bool lead, std::string& initialized) {
+  const ppo::TrainConfig& cfg = run.cfg;
+  if (run.resume) {
     try {
-      trainer.load(ckpt);
+      trainer.load(run.ckpt);
     } catch (const std::runtime_error& e) {
       std::fprintf(stderr, "hns train: cannot resume: %s\n", e.what());
       return 2;
     }
   } else if (!cfg.init_from.empty()) {
     std::error_code ec;
-    if (lead && fs::equivalent(cfg.init_from, ckpt, ec)) {
-      throw physics::ConfigError(init_what + cfg.init_from + " is the checkpoint of --out " + dir +
+    if (lead && fs::equivalent(cfg.init_from, run.ckpt, ec)) {
+      throw physics::ConfigError(run.init_what + cfg.init_from + " is the checkpoint of --out " + run.dir +
                                  ", which this run replaces: copy it elsewhere first");
     }
     try {
       initialized = trainer.initialize_from(cfg.init_from);
     } catch (const std::runtime_error& e) {
-      std::fprintf(stderr, "hns train: %s%s: %s\n", init_what.c_str(), cfg.init_from.c_str(), e.what());
+      std::fprintf(stderr, "hns train: %s%s: %s\n", run.init_what.c_str(), cfg.init_from.c_str(), e.what());
       return 2;
     }
   }
-  // Every rank must start from the same state: the same config and, resuming or starting from a checkpoint,
-  // the same file (a stale copy on one machine would train other weights there).
-  if (comm.size() > 1) {
-    const uint64_t fp = trainer.fingerprint();
-    const std::vector<double> mine = {double(fp >> 32), double(fp & 0xffffffffULL)};
-    std::vector<double> all;
-    comm.allgather(mine, all);
-    for (int r = 1; r < comm.size(); ++r) {
-      if (all[size_t(2 * r)] != all[0] || all[size_t(2 * r) + 1] != all[1]) {
-        throw physics::ConfigError("rank " + std::to_string(r) +
-                                   " starts from another config or checkpoint than rank 0 (every rank must "
-                                   "see the same files and arguments: a shared run folder, the same build)");
-      }
-    }
-  }
-  if (!lead) return follow(trainer, cfg, comm);
-  if (!resume) {
-    std::error_code ec;
-    fs::create_directories(dir, ec);  // before the --profile check: a profile may go into the new run folder
-    if (ec) throw physics::ConfigError("--out " + dir + " cannot be created: " + ec.message());
-    if (::access(dir.c_str(), W_OK | X_OK) != 0)
-      throw physics::ConfigError("--out " + dir + " is not writable");
-    // A folder that did not exist at the check above is locked now: of two runs started into one new
-    // folder at once, the second to get here is refused.
-    if (!lock.held()) {
-      lock = lock_run_folder("--out", dir);
-      // What another run may have put there between the checks above and the lock.
-      check_run_folder(dir);
-      check_no_run_unless(opt.overwrite, dir, ckpt);
-    }
-    if (!opt.config_file.empty() && fs::equivalent(opt.config_file, fs::path(dir) / "config.json", ec)) {
-      throw physics::ConfigError("--config " + opt.config_file + " is the run's own config.json in --out " +
-                                 dir + ", which the run rewrites: copy it elsewhere first");
-    }
-    write_atomically((fs::path(dir) / kRunMarker).string(), "a run folder of hns train\n");
-  }
-  if (!opt.profile.empty()) {
-    check_output_path("--profile", opt.profile,
-                      {ckpt, metrics_path, replay_path, (fs::path(dir) / "config.json").string(),
-                       cfg.init_from, opt.config_file});
-  }
-  if (!resume) {
-    if (!fs::exists(ckpt) && fs::exists(metrics_path)) {
-      std::printf(
-          "hns train: %s holds no checkpoint (an earlier run stopped before writing one): starting over\n",
-          dir.c_str());
-    }
-    // Nothing is removed unless every run file it would remove or replace is a file (or a link) hns can
-    // replace: a folder or a FIFO in a run file's place is refused first, with nothing touched.
-    const std::string config_path = (fs::path(dir) / "config.json").string();
-    for (const std::string& f : {ckpt, metrics_path, replay_path, config_path}) {
-      for (const std::string& p : {f, f + ".tmp"}) {
-        std::error_code sec;
-        // (ckpt, metrics and replay are removed, a link included; config.json is written through
-        // check_replaceable, which follows a link)
-        const fs::file_status st = f == config_path ? fs::status(p, sec) : fs::symlink_status(p, sec);
-        if (sec || !fs::exists(st) || fs::is_regular_file(st) || fs::is_symlink(st)) continue;
-        struct stat raw {};
-        const std::string kind =
-            ::lstat(p.c_str(), &raw) == 0 ? ppo::special_file_kind(raw.st_mode) : "not a file";
-        throw physics::ConfigError(p + " is " + kind +
-                                   ", where the run keeps a file of its own: hns removes and "
-                                   "replaces only files it wrote; move it away, or use another --out");
-      }
-    }
-    for (const std::string& f : {ckpt, metrics_path, replay_path}) {
-      fs::remove(f);
-      fs::remove(f + ".tmp");
-    }
-  }
+  return 0;
+}
 
-  std::string earlier_metrics;
-  if (resume) earlier_metrics = truncate_metrics(metrics_path, trainer.iteration());
-  write_atomically((fs::path(dir) / "config.json").string(), cfg.to_json());
+// Every rank must start from the same state: the same config and, resuming or starting from a checkpoint,
+// the same file (a stale copy on one machine would train other weights there).
+void check_same_start(const ppo::Trainer& trainer, ppo::Comm& comm) {
+  if (comm.size() <= 1) return;
+  const uint64_t fp = trainer.fingerprint();
+  const std::vector<double> mine = {double(fp >> 32), double(fp & 0xffffffffULL)};
+  std::vector<double> all;
+  comm.allgather(mine, all);
+  for (int r = 1; r < comm.size(); ++r) {
+    if (all[size_t(2 * r)] != all[0] || all[size_t(2 * r) + 1] != all[1]) {
+      throw physics::ConfigError("rank " + std::to_string(r) +
+                                 " starts from another config or checkpoint than rank 0 (every rank must "
+                                 "see the same files and arguments: a shared run folder, the same build)");
+    }
+  }
+}
 
+// A new run's folder: created, locked and marked as a run folder.
+void create_run_folder(const TrainOptions& opt, RunSetup& run) {
+  const std::string& dir = run.dir;
+  std::error_code ec;
+  fs::create_directories(dir, ec);  // before the --profile check: a profile may go into the new run folder
+  if (ec) throw physics::ConfigError("--out " + dir + " cannot be created: " + ec.message());
+  if (::access(dir.c_str(), W_OK | X_OK) != 0)
+    throw physics::ConfigError("--out " + dir + " is not writable");
+  // A folder that did not exist at the first check is locked now: of two runs started into one new folder
+  // at once, the second to get here is refused.
+  if (!run.lock.held()) {
+    run.lock = lock_run_folder("--out", dir);
+    // What another run may have put there between the first checks and the lock.
+    check_run_folder(dir);
+    check_no_run_unless(opt.overwrite, dir, run.ckpt);
+  }
+  if (!opt.config_file.empty() && fs::equivalent(opt.config_file, run.config_path, ec)) {
+    throw physics::ConfigError("--config " + opt.config_file + " is the run's own config.json in --out " +
+                               dir + ", which the run rewrites: copy it elsewhere first");
+  }
+  write_atomically((fs::path(dir) / kRunMarker).string(), "a run folder of hns train\n");
+}
+
+// A new run's files of an earlier run in the folder, removed. Nothing is removed unless every run file it
+// would remove or replace is a file (or a link) hns can replace: a folder or a FIFO in a run file's place is
+// refused first, with nothing touched.
+void remove_old_run_files(const RunSetup& run) {
+  if (!fs::exists(run.ckpt) && fs::exists(run.metrics_path)) {
+    std::printf(
+        "hns train: %s holds no checkpoint (an earlier run stopped before writing one): starting over\n",
+        run.dir.c_str());
+  }
+  for (const std::string& f : {run.ckpt, run.metrics_path, run.replay_path, run.config_path}) {
+    for (const std::string& p : {f, f + ".tmp"}) {
+      std::error_code sec;
+      // (ckpt, metrics and replay are removed, a link included; config.json is written through
+      // check_replaceable, which follows a link)
+      const fs::file_status st = f == run.config_path ? fs::status(p, sec) : fs::symlink_status(p, sec);
+      if (sec || !fs::exists(st) || fs::is_regular_file(st) || fs::is_symlink(st)) continue;
+      struct stat raw {};
+      const std::string kind =
+          ::lstat(p.c_str(), &raw) == 0 ? ppo::special_file_kind(raw.st_mode) : "not a file";
+      throw physics::ConfigError(p + " is " + kind +
+                                 ", where the run keeps a file of its own: hns removes and "
+                                 "replaces only files it wrote; move it away, or use another --out");
+    }
+  }
+  for (const std::string& f : {run.ckpt, run.metrics_path, run.replay_path}) {
+    fs::remove(f);
+    fs::remove(f + ".tmp");
+  }
+}
+
+// The run's description at its start: sizes, memory, instruction set, precision, ranks, where it starts
+// from and where its outputs go.
+void print_run_start(const ppo::Trainer& trainer, const RunSetup& run, const ppo::Comm& comm,
+                     const std::string& initialized) {
+  const ppo::TrainConfig& cfg = run.cfg;
   const batch::Layout& L = trainer.sim().layout();
   const std::string update = cfg.minibatch_chunks > 0
                                  ? "minibatches of at most " + count_text(cfg.minibatch_chunks, "chunk")
@@ -474,81 +407,58 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     std::printf("  %d ranks (MPI), %d update blocks; rank 0 steps envs [%d, %d)\n", comm.size(),
                 cfg.update_blocks(), trainer.first_env(), trainer.first_env() + trainer.sim().num_envs());
   }
-  if (resume)
-    std::printf("  resuming %s at iteration %lld\n", dir.c_str(),
+  if (run.resume)
+    std::printf("  resuming %s at iteration %lld\n", run.dir.c_str(),
                 static_cast<long long>(trainer.iteration()));
   if (!initialized.empty())
     std::printf("  starting from %s: %s\n", cfg.init_from.c_str(), initialized.c_str());
   std::printf(
       "  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
-      dir.c_str(), dir.c_str());
+      run.dir.c_str(), run.dir.c_str());
   std::fflush(stdout);
+}
 
-  // --profile: the first iterations of this process are traced, then written.
-  constexpr int kProfileIterations = 3;
-  const int64_t profile_until = trainer.iteration() + kProfileIterations;
-  if (!opt.profile.empty()) trainer.set_tracing(true);
-  auto finish_profile = [&] {
-    if (opt.profile.empty()) return;
-    trainer.set_tracing(false);
-    const std::vector<batch::TraceEvent> events = trainer.take_trace();
+// --profile: the first iterations of this process are traced, then written.
+class Profile {
+ public:
+  Profile(ppo::Trainer& trainer, const std::string& path)
+      : trainer_(trainer), path_(path), until_(trainer.iteration() + kIterations) {
+    if (!path_.empty()) trainer_.set_tracing(true);
+  }
+  // After each iteration: the trace is written once the profiled iterations are done.
+  void after_iteration() {
+    if (trainer_.iteration() == until_) finish();
+  }
+  void finish() {
+    if (path_.empty()) return;
+    trainer_.set_tracing(false);
+    const std::vector<batch::TraceEvent> events = trainer_.take_trace();
     if (events.empty()) return;
     // A profile that cannot be written costs the profile, never the run.
     try {
-      write_chrome_trace(opt.profile, events);
-      std::printf("  wrote %s (%zu events; open it in chrome://tracing or ui.perfetto.dev)\n",
-                  opt.profile.c_str(), events.size());
+      write_chrome_trace(path_, events);
+      std::printf("  wrote %s (%zu events; open it in chrome://tracing or ui.perfetto.dev)\n", path_.c_str(),
+                  events.size());
     } catch (const std::exception& e) {
       std::fprintf(stderr, "hns train: warning: could not write the profile %s: %s (training goes on)\n",
-                   opt.profile.c_str(), e.what());
+                   path_.c_str(), e.what());
     }
-  };
-
-  g_stop.store(false);
-  std::signal(SIGINT, on_interrupt);
-  std::signal(SIGTERM, on_interrupt);
-  // SIGUSR1 too: mpirun forwards it to every rank (it ends a job's ranks a second after Ctrl-C or SIGTERM,
-  // often before the checkpoint), so `kill -USR1 <mpirun>` is the graceful stop of a run over MPI.
-  std::signal(SIGUSR1, on_interrupt);
-  // The paper's stages (docs/training.md "Stages"), announced as each first appears; a resumed run's earlier
-  // iterations are read first, silently. A run without one of the teams has no stages to detect.
-  replay::StageTracker stages(cfg.hiders == 0 || cfg.seekers == 0 ? "" : cfg.scene);
-  {
-    std::istringstream earlier(std::move(earlier_metrics));
-    for (std::string line; std::getline(earlier, line);) stages.add(line);
-    earlier_metrics = std::string();
   }
-  std::ofstream metrics(metrics_path, std::ios::app);
-  if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
-  ppo::IterationMetrics totals;  // summed times of this process's iterations
+
+ private:
+  static constexpr int kIterations = 3;
+  ppo::Trainer& trainer_;
+  const std::string& path_;
+  const int64_t until_;
+};
+
+// The summed times of this process's iterations and the mean iteration time (for the ETA).
+struct RunTimes {
+  ppo::IterationMetrics totals;
   double mean_seconds = 0;
   int timed = 0;
-  int status = 0;
-  int64_t last_checkpoint = trainer.iteration();  // of the checkpoint on disk (when there is one)
-  while (trainer.iteration() < cfg.iterations) {
-    ppo::IterationMetrics m;
-    try {
-      m = trainer.iterate();
-    } catch (const ppo::NumericalError& e) {
-      if (fs::exists(ckpt)) {
-        std::fprintf(stderr,
-                     "\nhns train: stopped: %s\n  the last good checkpoint is kept: %s (iteration %lld)\n",
-                     e.what(), ckpt.c_str(), static_cast<long long>(last_checkpoint));
-      } else {
-        std::fprintf(
-            stderr,
-            "\nhns train: stopped: %s\n  no checkpoint was written yet: run the same command to start "
-            "over\n",
-            e.what());
-      }
-      return 3;
-    }
-    const std::string row = m.to_json();
-    metrics << row << "\n";
-    metrics.flush();
-    if (!metrics) throw std::runtime_error("cannot write " + metrics_path);
-    const std::vector<int> reached = stages.add(row);
-    if (trainer.iteration() == profile_until) finish_profile();
+
+  void add(const ppo::IterationMetrics& m) {
     for (auto [sum, v] : {std::pair{&totals.seconds, m.seconds},
                           {&totals.t_simulate, m.t_simulate},
                           {&totals.t_observe, m.t_observe},
@@ -563,75 +473,181 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     }
     mean_seconds = (mean_seconds * timed + m.seconds) / (timed + 1);
     ++timed;
-    const double eta = mean_seconds * double(cfg.iterations - m.iteration);
-    const std::string ranks = comm.size() > 1 ? "  ranks " + std::to_string(comm.size()) : "";
-    char intrinsic[48] = "";
-    if (cfg.intrinsic != "none")
-      std::snprintf(intrinsic, sizeof intrinsic, " intrinsic %+.2f", m.intrinsic_reward);
-    std::printf(
-        "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f%s  entropy %.3f  kl %.4f%s  "
-        "ETA %s\n",
-        static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
-        m.steps_per_s, m.hider_reward, m.seeker_reward, intrinsic, m.entropy, m.approx_kl, ranks.c_str(),
-        duration_text(eta).c_str());
-    for (int k : reached) {
-      std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());
+  }
+};
+
+// One iteration's progress line, and the stages it reached.
+void print_progress(const ppo::IterationMetrics& m, const ppo::TrainConfig& cfg, const ppo::Comm& comm,
+                    const RunTimes& times, const replay::StageTracker& stages,
+                    const std::vector<int>& reached) {
+  const double eta = times.mean_seconds * double(cfg.iterations - m.iteration);
+  const std::string ranks = comm.size() > 1 ? "  ranks " + std::to_string(comm.size()) : "";
+  char intrinsic[48] = "";
+  if (cfg.intrinsic != "none")
+    std::snprintf(intrinsic, sizeof intrinsic, " intrinsic %+.2f", m.intrinsic_reward);
+  std::printf(
+      "iter %lld/%d  agent-steps %lld  %.0f steps/s  hider %+.2f seeker %+.2f%s  entropy %.3f  kl %.4f%s  "
+      "ETA %s\n",
+      static_cast<long long>(m.iteration), cfg.iterations, static_cast<long long>(m.agent_steps),
+      m.steps_per_s, m.hider_reward, m.seeker_reward, intrinsic, m.entropy, m.approx_kl, ranks.c_str(),
+      duration_text(eta).c_str());
+  for (int k : reached) {
+    std::printf("hns train: stage reached: %s\n", stages.stages()[size_t(k)].reached_text().c_str());
+  }
+  std::fflush(stdout);
+}
+
+// The iterations of rank 0: a metrics row and a progress line each, checkpoints (and the replay of the
+// checkpoint's policy) every checkpoint_every iterations, at the end and on a graceful stop. Returns the exit
+// status: 0, 3 (non-finite statistics) or 130 (stopped).
+int train_loop(ppo::Trainer& trainer, const RunSetup& run, ppo::Comm& comm, std::string earlier_metrics,
+               Profile& profile, RunTimes& times) {
+  const ppo::TrainConfig& cfg = run.cfg;
+  catch_stop_signals();
+  // The paper's stages (docs/training.md "Stages"), announced as each first appears; a resumed run's earlier
+  // iterations are read first, silently. A run without one of the teams has no stages to detect.
+  replay::StageTracker stages(cfg.hiders == 0 || cfg.seekers == 0 ? "" : cfg.scene);
+  {
+    std::istringstream earlier(std::move(earlier_metrics));
+    for (std::string line; std::getline(earlier, line);) stages.add(line);
+    earlier_metrics = std::string();
+  }
+  std::ofstream metrics(run.metrics_path, std::ios::app);
+  if (!metrics) throw std::runtime_error("cannot write " + run.metrics_path);
+  int status = 0;
+  int64_t last_checkpoint = trainer.iteration();  // of the checkpoint on disk (when there is one)
+  while (trainer.iteration() < cfg.iterations) {
+    ppo::IterationMetrics m;
+    try {
+      m = trainer.iterate();
+    } catch (const ppo::NumericalError& e) {
+      if (fs::exists(run.ckpt)) {
+        std::fprintf(stderr,
+                     "\nhns train: stopped: %s\n  the last good checkpoint is kept: %s (iteration %lld)\n",
+                     e.what(), run.ckpt.c_str(), static_cast<long long>(last_checkpoint));
+      } else {
+        std::fprintf(
+            stderr,
+            "\nhns train: stopped: %s\n  no checkpoint was written yet: run the same command to start "
+            "over\n",
+            e.what());
+      }
+      return 3;
     }
-    std::fflush(stdout);
+    const std::string row = m.to_json();
+    metrics << row << "\n";
+    metrics.flush();
+    if (!metrics) throw std::runtime_error("cannot write " + run.metrics_path);
+    const std::vector<int> reached = stages.add(row);
+    profile.after_iteration();
+    times.add(m);
+    print_progress(m, cfg, comm, times, stages, reached);
     const bool last = trainer.iteration() >= cfg.iterations;
     // Read once (a signal between two reads must not skip the checkpoint) and agreed by every rank.
     const bool stop = comm.any(g_stop.load());
     if (last || stop || trainer.iteration() % cfg.checkpoint_every == 0) {
-      trainer.save(ckpt);
+      trainer.save(run.ckpt);
       last_checkpoint = trainer.iteration();
       // Episodes of the checkpoint's policy, for `hns report` (a discarded episode just leaves the old file).
       try {
-        record_replay(trainer, replay_path, 2);
+        record_replay(trainer, run.replay_path, 2);
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "hns train: warning: could not record %s: %s\n", replay_path.c_str(), e.what());
+        std::fprintf(stderr, "hns train: warning: could not record %s: %s\n", run.replay_path.c_str(),
+                     e.what());
       }
     }
     if (stop && !last) {
       std::printf(
           "hns train: interrupted after iteration %lld; checkpoint written. Continue with:\n"
           "  hns train --resume %s\n",
-          static_cast<long long>(trainer.iteration()), dir.c_str());
+          static_cast<long long>(trainer.iteration()), run.dir.c_str());
       status = 130;
       break;
     }
   }
-  std::signal(SIGINT, SIG_DFL);
-  std::signal(SIGTERM, SIG_DFL);
-  std::signal(SIGUSR1, SIG_DFL);
-  finish_profile();  // a run shorter than the profiled iterations
-  if (totals.seconds > 0) {
-    const double w = 100.0 / totals.seconds;
-    const batch::PhaseTimes& ph = trainer.sim().phase_times();
-    const double sim_thread = ph.total();
-    const double v = sim_thread > 0 ? 100.0 / sim_thread : 0.0;
-    std::printf(
-        "time split: simulate %.1f%% (of its thread time: physics %.0f%%, mirror %.0f%%, "
-        "vision+lidar %.0f%%, observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, "
-        "forward+backward %.1f%%, "
-        "optimizer %.1f%%, everything else %.1f%% (observations into the buffer %.1f%%, targets and row "
-        "lists %.1f%%, "
-        "other %.1f%%)\n",
-        totals.t_simulate * w, ph.physics * v, ph.mirror * v, ph.perception * v, ph.observations * v,
-        ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
-        (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w,
-        totals.t_targets * w, totals.t_other * w);
-    if (totals.t_intrinsic > 0)
-      std::printf("  RND's networks (forward passes and predictor steps), besides the above: %.1f%%\n",
-                  totals.t_intrinsic * w);
-    if (comm.size() > 1)
-      std::printf("  communication with and waiting for the other ranks (inside the phases above): %.1f%%\n",
-                  totals.t_comm * w);
+  restore_stop_signals();
+  return status;
+}
+
+// Where this process's time went, as shares of its iterations' wall time.
+void print_time_split(const ppo::IterationMetrics& totals, const ppo::Trainer& trainer,
+                      const ppo::Comm& comm) {
+  if (totals.seconds <= 0) return;
+  const double w = 100.0 / totals.seconds;
+  const batch::PhaseTimes& ph = trainer.sim().phase_times();
+  const double sim_thread = ph.total();
+  const double v = sim_thread > 0 ? 100.0 / sim_thread : 0.0;
+  std::printf(
+      "time split: simulate %.1f%% (of its thread time: physics %.0f%%, mirror %.0f%%, "
+      "vision+lidar %.0f%%, observations %.0f%%, rewards+resets %.0f%%), inference %.1f%%, "
+      "forward+backward %.1f%%, "
+      "optimizer %.1f%%, everything else %.1f%% (observations into the buffer %.1f%%, targets and row "
+      "lists %.1f%%, "
+      "other %.1f%%)\n",
+      totals.t_simulate * w, ph.physics * v, ph.mirror * v, ph.perception * v, ph.observations * v,
+      ph.rewards * v, totals.t_infer * w, totals.t_backward * w, totals.t_optimizer * w,
+      (totals.t_observe + totals.t_targets + totals.t_other) * w, totals.t_observe * w, totals.t_targets * w,
+      totals.t_other * w);
+  if (totals.t_intrinsic > 0)
+    std::printf("  RND's networks (forward passes and predictor steps), besides the above: %.1f%%\n",
+                totals.t_intrinsic * w);
+  if (comm.size() > 1)
+    std::printf("  communication with and waiting for the other ranks (inside the phases above): %.1f%%\n",
+                totals.t_comm * w);
+}
+
+// One process of a run (rank `comm.rank()` of `comm.size()`; a single process is rank 0 of 1). Every rank
+// validates the same arguments and builds its Trainer; rank 0 alone touches the run folder, prints and
+// writes.
+int run_train(const TrainOptions& opt, ppo::Comm& comm) {
+  const bool lead = comm.rank() == 0;
+  RunSetup run;
+  read_run_config(opt, lead, run);
+  apply_flags(opt, run);
+  check_init_from(opt, run);
+  run.cfg.validate();
+  resolve_precision(run);
+  check_run_memory(run.cfg, comm);
+  const ppo::TrainConfig& cfg = run.cfg;
+
+  if (run.dir.empty()) run.dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
+  run.name_files();
+  if (!run.resume && lead) {
+    check_path_length("--out", run.dir);
+    check_run_folder(run.dir);
+    std::error_code ec;
+    if (fs::is_directory(run.dir, ec)) run.lock = lock_run_folder("--out", run.dir);
+    check_no_run_unless(opt.overwrite, run.dir, run.ckpt);
   }
+  ppo::Trainer trainer(cfg, &comm);
+  std::string initialized;
+  if (const int refused = load_start(trainer, run, lead, initialized)) return refused;
+  check_same_start(trainer, comm);
+  if (!lead) return follow(trainer, cfg, comm);
+  if (!run.resume) create_run_folder(opt, run);
+  if (!opt.profile.empty()) {
+    check_output_path(
+        "--profile", opt.profile,
+        {run.ckpt, run.metrics_path, run.replay_path, run.config_path, cfg.init_from, opt.config_file});
+  }
+  if (!run.resume) remove_old_run_files(run);
+
+  std::string earlier_metrics;
+  if (run.resume) earlier_metrics = truncate_metrics(run.metrics_path, trainer.iteration());
+  write_atomically(run.config_path, cfg.to_json());
+  print_run_start(trainer, run, comm, initialized);
+
+  Profile profile(trainer, opt.profile);
+  RunTimes times;
+  const int status = train_loop(trainer, run, comm, std::move(earlier_metrics), profile, times);
+  if (status == 3) return status;
+  profile.finish();  // a run shorter than the profiled iterations
+  print_time_split(times.totals, trainer, comm);
   if (status == 0) {
     std::printf(
         "hns train: done, %lld iterations. Outputs in %s (metrics.jsonl, checkpoint.bin, config.json, "
         "replay.traj).\n  Report: hns report %s --html %s/report.html\n",
-        static_cast<long long>(trainer.iteration()), dir.c_str(), dir.c_str(), dir.c_str());
+        static_cast<long long>(trainer.iteration()), run.dir.c_str(), run.dir.c_str(), run.dir.c_str());
   }
   return status;
 }

@@ -356,9 +356,9 @@ void check_values(const std::vector<T>& data, int64_t per_frame, const std::stri
   }
 }
 
-TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std::string& where, int version,
-                               bool verify_checksum) {
-  const Fields f(c.header, where);
+// The chunk is an episode of the file's version, and (where asked) its payload matches its checksum.
+void check_episode_chunk(std::string_view bytes, const Chunk& c, const Fields& f, int version,
+                         bool verify_checksum) {
   if (!c.header.contains("kind") || c.header["kind"] != "episode") {
     f.fail("kind", "expected \"episode\"" + (c.header.contains("kind") ? f.got(c.header["kind"]) : ""));
   }
@@ -373,7 +373,10 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
              "the payload's checksum is " + actual + ", the header says " + stored + " (a corrupt file)");
     }
   }
-  TrajectoryEpisode ep;
+}
+
+// The header's scalars and geometry, each within what hns can have written.
+void read_episode_header(const Fields& f, const Chunk& c, TrajectoryEpisode& ep) {
   // Names the pages show: only hns's own (a page built from a file someone sent must not take markup from
   // it).
   ep.scene = f.string("scene");
@@ -442,8 +445,11 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     if (s[0] <= 0 || s[1] <= 0 || s[2] <= 0)
       f.fail("box_sizes", "entry " + std::to_string(i) + ": size <= 0");
   }
+}
 
-  // Blocks: name -> descriptor; every known block must be present with its exact dtype and shape.
+// The blocks: name -> descriptor; every known block must be present with its exact dtype and shape.
+void read_episode_blocks(std::string_view bytes, const Chunk& c, const Fields& f, const std::string& where,
+                         TrajectoryEpisode& ep) {
   const json& blocks = f.at("blocks");
   if (!blocks.is_array()) f.fail("blocks", "expected an array" + f.got(blocks));
   std::map<std::string, const json*> by_name;
@@ -489,8 +495,10 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
     data.resize(size / sizeof(T));
     if (size > 0) std::memcpy(data.data(), payload.data() + offset, size);
   });
+}
 
-  // Values: poses and rewards finite and within physical bounds, flags 0/1, indices in range.
+// The values: poses and rewards finite and within physical bounds, flags 0/1, indices in range.
+void check_episode_values(const TrajectoryEpisode& ep, const std::string& where) {
   const int64_t a = ep.num_agents(), o = ep.num_objects();
   auto flag = [](uint8_t v) -> const char* { return v <= 1 ? nullptr : "0 or 1"; };
   // Each pose is (x, y, z, yaw): the element index within a frame says which.
@@ -545,6 +553,16 @@ TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std
                             ", expected 0.." + std::to_string(limit));
     }
   }
+}
+
+TrajectoryEpisode read_episode(std::string_view bytes, const Chunk& c, const std::string& where, int version,
+                               bool verify_checksum) {
+  const Fields f(c.header, where);
+  check_episode_chunk(bytes, c, f, version, verify_checksum);
+  TrajectoryEpisode ep;
+  read_episode_header(f, c, ep);
+  read_episode_blocks(bytes, c, f, where, ep);
+  check_episode_values(ep, where);
   return ep;
 }
 
