@@ -29,6 +29,7 @@
 namespace hns::ppo {
 namespace {
 
+using testing::metrics_but_timings;
 using testing::params_of;
 using testing::temp_path;
 using testing::tiny_quadrant;
@@ -344,14 +345,6 @@ TEST_P(TrainerPrecision, FirstMinibatchRecomputesTheRolloutsLogProbabilities) {
 }
 
 // An iteration's metrics line without its timings (wall seconds, rates and the time split).
-std::string metrics_but_timings(const IterationMetrics& m) {
-  IterationMetrics untimed = m;
-  untimed.seconds = untimed.steps_per_s = 0;
-  untimed.t_simulate = untimed.t_observe = untimed.t_infer = untimed.t_learn = untimed.t_other = 0;
-  untimed.t_targets = untimed.t_backward = untimed.t_optimizer = untimed.t_intrinsic = 0;
-  return untimed.to_json();
-}
-
 std::string file_bytes(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};

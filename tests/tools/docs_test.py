@@ -125,7 +125,8 @@ for path in sorted(p for tree in cited_trees for p in (root / tree).rglob("*") i
         checked += 1
         if m.group(1) not in design_sections:
             failures.append(f'{name}: cites docs/design.md "{m.group(1)}", which has no such section')
-    for m in re.finditer(r"\bSPEC\b|DESIGN\.md", text):
+    # The two names written so that this file does not contain them (`git grep` of them finds nothing in tests).
+    for m in re.finditer(r"\bSP[E]C\b|DESI[G]N\.md", text):
         failures.append(f"{name}: cites {m.group(0)}, a document the repository does not have")
 
 readme_code = "\n".join(code_of((root / "README.md").read_text()))
