@@ -55,7 +55,9 @@ class Adam {
   FloatBuffer decay_;  // 1 where weight decay applies, else 0 [buffer_floats]
 };
 
-// Global L2 norm of n floats, summed in double over fixed blocks (deterministic for any thread count).
+// Global L2 norm of n floats: the squares (exact in double) summed in double in index order within each
+// block of kNormBlock floats, then the blocks' sums in block order (deterministic for any thread count).
+inline constexpr size_t kNormBlock = size_t(1) << 14;
 double global_norm(const float* x, size_t n);
 
 }  // namespace hns::nn

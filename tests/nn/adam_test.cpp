@@ -5,6 +5,8 @@
 
 #include <cmath>
 #include <cstddef>
+#include <cstring>
+#include <random>
 #include <vector>
 
 namespace hns::nn {
@@ -114,6 +116,84 @@ TEST(NnAdam, GlobalNormIsExact) {
     want += static_cast<double>(x[i]) * x[i];
   }
   EXPECT_DOUBLE_EQ(global_norm(x.data(), x.size()), std::sqrt(want));
+}
+
+// The norm's summation order is its contract (bit-identical results at any thread count): each block of
+// kNormBlock floats summed in index order, then the blocks in order. Random floats, so that any other order
+// would round differently; whole groups of blocks, a partial group and a short last block.
+TEST(NnAdam, GlobalNormSumsEachBlockInOrderThenTheBlocks) {
+  std::mt19937 rng(7);
+  std::normal_distribution<float> dist(0.0f, 1.0f);
+  for (size_t n : {size_t(1), kNormBlock - 1, 8 * kNormBlock, 19 * kNormBlock + 4321}) {
+    std::vector<float> x(n);
+    for (float& v : x) v = dist(rng) * std::exp(dist(rng));
+    double total = 0.0;
+    for (size_t b = 0; b < n; b += kNormBlock) {
+      double s = 0.0;
+      for (size_t i = b; i < std::min(n, b + kNormBlock); ++i) s += static_cast<double>(x[i]) * x[i];
+      total += s;
+    }
+    EXPECT_EQ(global_norm(x.data(), n), std::sqrt(total)) << n << " floats";
+  }
+}
+
+// The step is vectorised; each element must see exactly the arithmetic of the documented formula, in float,
+// in this order, whichever lane or tail it falls in.
+TEST(NnAdam, StepEqualsTheScalarFormulaBitForBit) {
+  ParamLayout layout;
+  layout.add_kernel_xavier("w", 3 * 1024, 100, 1.0f, 2.0f);  // decayed
+  layout.add_vector("b", 4099, Init::kZeros);                // not decayed; odd sizes leave tails
+  const size_t n = layout.buffer_floats();
+  AdamConfig cfg;
+  cfg.lr = 0.003f;
+  cfg.weight_decay = 0.01f;
+  cfg.max_grad_norm = 0.5f;
+  Adam adam(layout, cfg);
+  std::mt19937 rng(11);
+  std::normal_distribution<float> dist(0.0f, 1.0f);
+  std::vector<float> p(n), g(n), m(n), v(n), decay(n, 0.0f);
+  for (const ParamSlice& s : layout.slices())
+    if (s.decay)
+      std::fill(decay.begin() + ptrdiff_t(s.offset), decay.begin() + ptrdiff_t(s.offset + s.size()), 1.0f);
+  for (size_t i = 0; i < n; ++i) {
+    p[i] = dist(rng);
+    m[i] = adam.m()[i] = 0.1f * dist(rng);
+    v[i] = adam.v()[i] = 0.01f * std::abs(dist(rng));
+  }
+  adam.set_steps(3);
+  for (int step = 0; step < 2; ++step) {
+    for (size_t i = 0; i < n; ++i) g[i] = dist(rng);
+    std::vector<float> p_ref = p, g_ref = g;
+    double sq = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+      g_ref[i] += cfg.weight_decay * decay[i] * p_ref[i];
+    }
+    for (size_t b = 0; b < n; b += kNormBlock) {
+      double s = 0.0;
+      for (size_t i = b; i < std::min(n, b + kNormBlock); ++i) s += static_cast<double>(g_ref[i]) * g_ref[i];
+      sq += s;
+    }
+    const double norm = std::sqrt(sq);
+    const float scale = norm > cfg.max_grad_norm ? static_cast<float>(cfg.max_grad_norm / norm) : 1.0f;
+    const double t = double(adam.steps() + 1);
+    const float lr_t = static_cast<float>(cfg.lr * std::sqrt(1.0 - std::pow(double(cfg.beta2), t)) /
+                                          (1.0 - std::pow(double(cfg.beta1), t)));
+    for (size_t i = 0; i < n; ++i) {
+      const float gi = g_ref[i] * scale;
+      g_ref[i] = gi;
+      m[i] = cfg.beta1 * m[i] + (1.0f - cfg.beta1) * gi;
+      v[i] = cfg.beta2 * v[i] + (1.0f - cfg.beta2) * gi * gi;
+      p_ref[i] -= lr_t * m[i] / (std::sqrt(v[i]) + cfg.eps);
+    }
+    const AdamStepInfo info = adam.step(p.data(), g.data());
+    ASSERT_TRUE(info.applied);
+    EXPECT_EQ(info.grad_norm, norm);
+    EXPECT_EQ(std::memcmp(g.data(), g_ref.data(), n * sizeof(float)), 0) << "gradient, step " << step;
+    EXPECT_EQ(std::memcmp(adam.m().data(), m.data(), n * sizeof(float)), 0) << "first moment, step " << step;
+    EXPECT_EQ(std::memcmp(adam.v().data(), v.data(), n * sizeof(float)), 0) << "second moment, step " << step;
+    EXPECT_EQ(std::memcmp(p.data(), p_ref.data(), n * sizeof(float)), 0) << "parameters, step " << step;
+    p = p_ref;
+  }
 }
 
 }  // namespace
