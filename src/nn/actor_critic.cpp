@@ -205,19 +205,26 @@ void ActorCritic::forward_backward(const ObsNormView& norm, const ObsBatch& obs,
     for (size_t k = 0; k < nstats; ++k) stats[k] += chunk_stats_[c * nstats + k];
 }
 
-void ActorCritic::sum_groups(size_t begin, size_t end, const float* before, float* out) const {
-  const int groups = static_cast<int>(group_chunks_.size()) - 1;
+void ActorCritic::sum_groups(size_t begin, size_t end, const float* before, float* out) {
+  const int groups = summed_groups_;
   // Each element in group order (before, group 0, group 1, ...), so any split of the range gives the same
-  // bits; vectors of elements at a time.
-  const float* first = group_grads_[0].data() + begin;
+  // bits; vectors of elements at a time. Each group's vector is zeroed as it is read (its line is in the
+  // cache now; a separate clearing pass would fetch it again).
+  float* first = group_grads_[0].data() + begin;
   float* dst = out + begin;
   simd::for_each<true>(static_cast<int>(end - begin), [&](auto tag, int i) {
     using F = decltype(tag);
     F s = simd::load<F>(first + i);
+    simd::store(first + i, F(0.0f));
     if (before != nullptr) s = simd::load<F>(before + i) + s;
-    for (int g = 1; g < groups; ++g) s = s + simd::load<F>(group_grads_[g].data() + begin + i);
+    for (int g = 1; g < groups; ++g) {
+      float* gi = group_grads_[g].data() + begin + i;
+      s = s + simd::load<F>(gi);
+      simd::store(gi, F(0.0f));
+    }
     simd::store(dst + i, s);
   });
+  zeroed_floats_->fetch_add(end - begin, std::memory_order_acq_rel);
 }
 
 void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
@@ -248,7 +255,15 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
   const size_t nfloats = params_.buffer_floats();
   const int sw = state_width();
   const int nl = heads_.num_logits();
-  while (group_grads_.size() < static_cast<size_t>(groups)) group_grads_.emplace_back(nfloats);
+  while (group_grads_.size() < static_cast<size_t>(groups)) {
+    group_grads_.emplace_back(nfloats);  // zeroed
+    group_dirty_.push_back(0);
+  }
+  // The groups the last sum read are clear if it read every float (sum_groups zeroes what it reads).
+  if (zeroed_floats_->exchange(0) == nfloats) std::fill_n(group_dirty_.begin(), summed_groups_, uint8_t{0});
+  group_clear_.assign(group_dirty_.begin(), group_dirty_.begin() + groups);
+  std::fill_n(group_dirty_.begin(), groups, uint8_t{1});
+  summed_groups_ = groups;
   chunk_stats_.assign(static_cast<size_t>(num_chunks) * nstats, 0.0);
   const Weights p = prepare_weights(true);
 
@@ -256,7 +271,7 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
   tbb::parallel_for(0, groups, [&](int g) {
     ThreadWork& w = local_work(train_work_, chunk, steps);
     float* gg = group_grads_[g].data();
-    group_grads_[g].fill_zero();
+    if (group_clear_[g] != 0) group_grads_[g].fill_zero();
     for (int c = group_chunks_[g]; c < group_chunks_[g + 1]; ++c) {
       const int first_seq = chunks_[c].first_seq;
       const int n = chunks_[c].sequences;

@@ -18,6 +18,7 @@
 
 #include <oneapi/tbb/enumerable_thread_specific.h>
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -147,11 +148,15 @@ class ActorCritic {
                         std::span<double> stats, float* grads_out, std::span<const int> group_sequences = {});
   // The same in two parts, for a sum that goes on in other processes: compute_groups() leaves every group's
   // gradient and every chunk's statistics (`nstats` each) here; sum_groups() writes out[i] = before[i -
-  // begin] (or nothing if null) + group 0 + group 1 + ... in that order, for i in [begin, end).
+  // begin] (or nothing if null) + group 0 + group 1 + ... in that order, for i in [begin, end), and zeroes
+  // what it has read (the next compute_groups() accumulates into zeros without a pass of its own to clear
+  // the groups). So each float is summed once per compute_groups(): a second sum of a range reads zeros.
+  // Ranges never summed are safe: unless every float was summed, the next compute_groups() clears the
+  // groups itself.
   void compute_groups(const ObsNormView& norm, const ObsBatch& obs, int sequences, int steps,
                       const float* policy_state0, const float* value_state0, const LossFn& loss,
                       size_t nstats, std::span<const int> group_sequences = {});
-  void sum_groups(size_t begin, size_t end, const float* before, float* out) const;
+  void sum_groups(size_t begin, size_t end, const float* before, float* out);
   // [chunks, nstats] of the last compute_groups(), chunk by chunk (group by group).
   std::span<const double> chunk_stats() const { return chunk_stats_; }
 
@@ -175,6 +180,13 @@ class ActorCritic {
   Weights prepare_weights(bool for_backward) const;
 
   std::vector<FloatBuffer> group_grads_;  // [groups][buffer_floats]
+  // 1 where a group's buffer may hold gradients (written by compute_groups() and not yet all summed).
+  std::vector<uint8_t> group_dirty_;
+  std::vector<uint8_t> group_clear_;  // compute_groups(): 1 where a group's buffer must be zeroed first
+  int summed_groups_ = 0;             // the groups sum_groups() reads and zeroes: the last compute_groups()'s
+  // Floats sum_groups() has zeroed since the last compute_groups() (the ranges of one chain sum are
+  // disjoint; all of them: every group is clear again).
+  std::unique_ptr<std::atomic<size_t>> zeroed_floats_ = std::make_unique<std::atomic<size_t>>(0);
   struct Chunk {
     int first_seq = 0, sequences = 0;
   };

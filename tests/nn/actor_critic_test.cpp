@@ -162,8 +162,8 @@ Result outputs_and_grads(ActorCritic& ac, const ObsNormView& view, const ObsBatc
 
 TEST(NnNetwork, PaperPresetHasAboutOnePointSixMillionParameters) {
   ActorCritic ac(net_preset("paper"));
-  // docs/game.md §10.3: about 1.63 M (policy about 818 k of which the LSTM is 525 k, value about 809 k); ours has
-  // 11 self and agent features (yaw as cos/sin) instead of 10.
+  // docs/game.md §10.3: about 1.63 M (policy about 818 k of which the LSTM is 525 k, value about 809 k); ours
+  // has 11 self and agent features (yaw as cos/sin) instead of 10.
   EXPECT_NEAR(static_cast<double>(ac.num_params()), 1.63e6, 0.02 * 1.63e6);
   EXPECT_EQ(ac.num_params(), 1627502u);
   EXPECT_EQ(
@@ -495,6 +495,47 @@ TEST(NnNetwork, ExplicitGroupsSumTheirGradientsInGroupOrder) {
   EXPECT_THROW(ac.forward_backward(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss_at(0),
                                    stats, grads.data(), std::vector<int>{0, 5, 4, 9}),
                std::logic_error);
+}
+
+// sum_groups() zeroes the group buffers as it reads them, so that compute_groups() need not clear them:
+// whatever the last sum read (everything, half, nothing) and however many groups the last call had, a
+// gradient is the one the first call computed; and a range summed twice reads zeros.
+TEST(NnNetwork, GroupGradientsStartFromZeroWhateverTheLastSumRead) {
+  const NetConfig cfg = tiny_config();
+  ParallelConfig par;
+  par.train_chunk_sequences = 2;
+  par.grad_groups = 4;
+  ActorCritic ac(cfg, par);
+  ac.params().init(5);
+  const int seqs = 9, steps = 2;
+  const ObsData data(cfg.obs, seqs * steps, 400);
+  const ObsNormalizer norm = fitted_normalizer(cfg.obs, data, seqs * steps);
+  const size_t n = ac.params().buffer_floats();
+  const Result want = outputs_and_grads(ac, norm.view(), data.batch(), seqs, steps, 0.01f, -0.05f, 0.3f);
+  auto again = [&] {
+    return outputs_and_grads(ac, norm.view(), data.batch(), seqs, steps, 0.01f, -0.05f, 0.3f).grads;
+  };
+  const int nl = ac.heads().num_logits();
+  const LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double>) {
+    for (int r = 0; r < out.rows; ++r) {
+      for (int k = 0; k < nl; ++k) g.d_logits.at(r, k) = 1.0f;
+      g.d_value[r] = 1.0f;
+    }
+  };
+  EXPECT_TRUE(same_bits(again().data(), want.grads.data(), n)) << "after a whole sum";
+  std::vector<float> part(n);
+  ac.compute_groups(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss, 0);
+  ac.sum_groups(0, n / 2, nullptr, part.data());
+  EXPECT_TRUE(same_bits(again().data(), want.grads.data(), n)) << "after half a sum";
+  ac.compute_groups(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss, 0,
+                    std::vector<int>{0, 4, 9});
+  EXPECT_TRUE(same_bits(again().data(), want.grads.data(), n)) << "after two groups never summed";
+  ac.compute_groups(norm.view(), data.batch(), seqs, steps, nullptr, nullptr, loss, 0);
+  ac.sum_groups(0, n, nullptr, part.data());
+  EXPECT_NE(std::count(part.begin(), part.end(), 0.0f), ptrdiff_t(n));
+  ac.sum_groups(0, n, nullptr, part.data());
+  EXPECT_EQ(std::count(part.begin(), part.end(), 0.0f), ptrdiff_t(n)) << "a second sum of a range";
+  EXPECT_TRUE(same_bits(again().data(), want.grads.data(), n)) << "after a range summed twice";
 }
 
 // A row's outputs in act() do not depend on the rows beside it (how many there are, where its chunk starts):
