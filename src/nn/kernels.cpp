@@ -82,6 +82,51 @@ void masked_softmax_backward_impl(const float* p, const float* dp, float scale, 
   });
 }
 
+#if defined(__AVX512F__)
+// Rows shorter than a vector (the attention's: one element per key) would run wholly in the scalar tail of
+// the two functions above. With AVX-512 they run in one vector instead: masked loads and stores (the lanes
+// past n are never read from memory nor written), the same operations per element, and the max and the
+// sums over the n real elements in index order, as that tail takes them, so the results equal the scalar
+// path's bit for bit. (Only vector stores are read back as scalars: a vector load of scalar stores would
+// stall store forwarding.)
+constexpr bool kShortRows = simd::kWidth == 16;
+
+__mmask16 first_lanes(int n) {
+  return static_cast<__mmask16>((1u << n) - 1u);
+}
+
+void masked_softmax_short(const float* logits, const float* mask, float scale, int n, float* p) {
+  const __mmask16 k = first_lanes(n);
+  alignas(64) float lanes[16];
+  const Batch mk(_mm512_maskz_loadu_ps(k, mask));
+  const Batch l = simd::fma(Batch(1.0f) - mk, Batch(-kMaskedLogitPenalty),
+                            Batch(_mm512_maskz_loadu_ps(k, logits)) * Batch(scale));
+  l.store_aligned(lanes);
+  float m = -INFINITY;
+  for (int i = 0; i < n; ++i) m = simd::max(m, lanes[i]);
+  const Batch e = simd::exp(l - Batch(m)) * mk;
+  e.store_aligned(lanes);
+  float s = 0.0f;
+  for (int i = 0; i < n; ++i) s += lanes[i];
+  const float denom = s + kSoftmaxSumEps;
+  _mm512_mask_storeu_ps(p, k, e / Batch(denom) * mk);
+}
+
+void masked_softmax_backward_short(const float* p, const float* dp, float scale, int n, float* dlogits) {
+  const __mmask16 k = first_lanes(n);
+  alignas(64) float lanes[16];
+  const Batch pv(_mm512_maskz_loadu_ps(k, p)), dpv(_mm512_maskz_loadu_ps(k, dp));
+  (pv * dpv).store_aligned(lanes);
+  float s = 0.0f;
+  for (int i = 0; i < n; ++i) s += lanes[i];
+  _mm512_mask_storeu_ps(dlogits, k, pv * (dpv - Batch(s)) * Batch(scale));
+}
+#else
+constexpr bool kShortRows = false;
+void masked_softmax_short(const float*, const float*, float, int, float*) {}
+void masked_softmax_backward_short(const float*, const float*, float, int, float*) {}
+#endif
+
 template <bool kSimd>
 void act_layer_norm_impl(const float* z, const float* pre_bias, Activation act, const float* gain,
                          const float* bias, int n, float* a, float* y, float* stats) {
@@ -413,12 +458,14 @@ void bias_act_scalar(float* y, const float* bias, Activation act, int n) {
 }
 
 void masked_softmax(const float* logits, const float* mask, float scale, int n, float* p) {
+  if (kShortRows && n < simd::kWidth) return masked_softmax_short(logits, mask, scale, n, p);
   masked_softmax_impl<true>(logits, mask, scale, n, p);
 }
 void masked_softmax_scalar(const float* logits, const float* mask, float scale, int n, float* p) {
   masked_softmax_impl<false>(logits, mask, scale, n, p);
 }
 void masked_softmax_backward(const float* p, const float* dp, float scale, int n, float* dlogits) {
+  if (kShortRows && n < simd::kWidth) return masked_softmax_backward_short(p, dp, scale, n, dlogits);
   masked_softmax_backward_impl<true>(p, dp, scale, n, dlogits);
 }
 void masked_softmax_backward_scalar(const float* p, const float* dp, float scale, int n, float* dlogits) {
