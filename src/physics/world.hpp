@@ -60,7 +60,7 @@ struct FoodConfig {
 };
 
 // Everything a world needs. Presets: the static factories below, one per scene of the registry (defined in
-// presets.cpp, beside physics::kScenes).
+// presets.cpp; the registry is batch::kScenes, batch/scenes.hpp).
 struct WorldConfig {
   SceneConfig scene = SceneConfig::quadrant();
   PhysicsConfig physics;

@@ -19,8 +19,7 @@ void collect_counting_states(const Trainer& trainer, int64_t first_episode, int 
   if (tc.world().task != physics::WorldConfig::Task::kCounting)
     throw std::invalid_argument("collect_counting_states: the trainer's scene is " + tc.scene +
                                 ", not object-counting");
-  batch::BatchConfig bc;
-  bc.world = tc.world();
+  batch::BatchConfig bc = tc.batch_config();
   bc.num_envs = envs;
   bc.threads = batch::usable_threads(threads);
   bc.seed = tc.seed;

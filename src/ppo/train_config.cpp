@@ -13,9 +13,9 @@
 
 #include "batch/batch_sim.hpp"
 #include "batch/host.hpp"
+#include "batch/scenes.hpp"
 #include "nn/actor_critic.hpp"
 #include "nn/entity_net.hpp"
-#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/batch_obs.hpp"
 
@@ -548,19 +548,19 @@ int TrainConfig::minibatches_for(int64_t chunks) const {
   return int(std::min<int64_t>(n, chunks));
 }
 
-physics::WorldConfig TrainConfig::world() const {
-  physics::WorldConfig w = physics::world_preset(scene);
+batch::BatchConfig TrainConfig::batch_config() const {
+  batch::BatchConfig game = batch::scene_config(scene);
+  physics::WorldConfig& w = game.world;
   if (horizon > 0) w.horizon = horizon;
   const bool had_others = w.max_agents() > 1, had_ramps = w.scene.ramps.max > 0;
   auto count = [](int v) { return v >= 0 ? std::optional<int>(v) : std::nullopt; };
-  physics::apply_overrides(
-      w, physics::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
+  batch::apply_overrides(w, batch::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
   // Keep the entity types of the scene in the observation: a lone agent still has an (empty) other-agent
   // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (docs/game.md §9).
   if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
   if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
   if (spawn_quarter == 1) w.scene.spawn_quarter = true;
-  return w;
+  return game;
 }
 
 int TrainConfig::envs_per_rank(int ranks) const {
@@ -582,8 +582,7 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   constexpr double kMargin = 1.25;
   constexpr size_t kFixedBytes = size_t(48) << 20;
   const int rank_envs = envs_per_rank(ranks);
-  batch::BatchConfig bc;
-  bc.world = world();
+  batch::BatchConfig bc = batch_config();
   bc.num_envs = rank_envs;
   const batch::Layout L = batch::Layout::of(bc);
   nn::NetConfig net = nn::net_preset(model);
@@ -654,7 +653,7 @@ void TrainConfig::validate() const {
   check(seekers >= -1 && seekers <= 32, "seekers", seekers, "must be in [0, 32] (-1 = the scene's)");
   check(boxes >= -1 && boxes <= 32, "boxes", boxes, "must be in [0, 32] (-1 = the scene's)");
   check(ramps >= -1 && ramps <= 16, "ramps", ramps, "must be in [0, 16] (-1 = the scene's)");
-  check(boxes != 0 || physics::world_preset(scene).scene.boxes.max == 0, "boxes", boxes,
+  check(boxes != 0 || batch::scene_config(scene).world.scene.boxes.max == 0, "boxes", boxes,
         "must be at least 1 in a scene with boxes (0 would drop the network's box type)");
   check(w.max_agents() >= 1, "hiders", hiders,
         "with seekers = " + std::to_string(seekers) + ": at least one agent is required");

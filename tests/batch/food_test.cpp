@@ -1,6 +1,6 @@
-// The food variants of hide-and-seek (docs/game.md §5.4) on staged scenes, one test per eating rule: a hider eats
-// what it saw within reach; not out of reach, not what it did not see, never a seeker, not while a hider is
-// seen (unless eat_when_caught), not in the preparation phase; the last units are shared; an eaten-up item
+// The food variants of hide-and-seek (docs/game.md §5.4) on staged scenes, one test per eating rule: a hider
+// eats what it saw within reach; not out of reach, not what it did not see, never a seeker, not while a hider
+// is seen (unless eat_when_caught), not in the preparation phase; the last units are shared; an eaten-up item
 // comes back after respawn_steps (dynamic food: elsewhere in its square); selfish and joint_mean rewards; the
 // placement of the paper's five clustered items.
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 
 namespace hns::batch {
 namespace {
@@ -39,8 +39,7 @@ Scene food_scene(std::vector<Spawn> hiders, std::vector<Spawn> seekers, std::vec
 
 // The "food" preset without its preparation phase (unless asked), one env.
 BatchConfig food_config(double prep_fraction = 0.0, const char* scene = "food") {
-  BatchConfig c;
-  c.world = physics::world_preset(scene);
+  BatchConfig c = scene_config(scene);
   c.world.prep_fraction = prep_fraction;
   c.num_envs = 1;
   return c;
@@ -205,7 +204,7 @@ TEST(Food, DynamicFoodMovesToANewSpotOfItsSquareWhenEaten) {
 // The paper's food game: five items close together in the centred square of 1/4 the side; the first in cells
 // 11 .. 16, the others within 2 cells of it.
 TEST(Food, FivePelletsSpawnTogetherInTheCentre) {
-  const physics::WorldConfig w = physics::world_preset("food");
+  const physics::WorldConfig w = scene_config("food").world;
   for (int seed = 0; seed < 200; ++seed) {
     physics::Rng rng(uint64_t(seed), 0, 0);
     Scene s;

@@ -1,4 +1,4 @@
-// The task registry (src/batch/tasks/registry.cpp): every scene of the scene registry physics::kScenes is
+// The task registry (src/batch/tasks/registry.cpp): every scene of the scene registry batch::kScenes is
 // played by a task of the right kind; a WorldConfig::Task value without a task is refused; a game or a
 // single-agent task without a reward cannot exist (there is no default reward: a new task that forgot its
 // rules once silently got shelter's); construction sites are refused outside blueprint, the one task whose
@@ -9,8 +9,8 @@
 #include <string>
 #include <type_traits>
 
+#include "batch/scenes.hpp"
 #include "batch/tasks/task.hpp"
-#include "physics/presets.hpp"
 
 namespace hns::batch {
 namespace {
@@ -28,9 +28,9 @@ static_assert(std::is_abstract_v<TaskWithoutReward>);
 static_assert(std::is_abstract_v<Task> && std::is_abstract_v<SingleAgentTask>);
 
 TEST(TaskRegistry, EveryScenePlaysATaskOfItsKind) {
-  for (const physics::SceneInfo& scene : physics::kScenes) {
+  for (const SceneInfo& scene : kScenes) {
     SCOPED_TRACE(scene.name);
-    const physics::WorldConfig w = scene.preset();
+    const physics::WorldConfig w = scene_config(scene.name).world;
     const Task& task = task_for(w.task);
     // Hide-and-seek and its food variants are the team game; every other scene is a single-agent task.
     EXPECT_EQ(dynamic_cast<const SingleAgentTask*>(&task) != nullptr, w.is_transfer_task());

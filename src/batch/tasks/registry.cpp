@@ -1,5 +1,5 @@
 // Which task plays which game: one row per physics::WorldConfig::Task value. A scene (a row of the scene
-// registry physics::kScenes) names its preset, the preset its WorldConfig::Task, and this switch the Task.
+// registry batch::kScenes) names its preset, the preset its WorldConfig::Task, and this switch the Task.
 // There is no default: a WorldConfig::Task value without a row here does not compile (the warning is an error
 // in this file), and a value outside the enum is refused.
 #include <stdexcept>

@@ -1,6 +1,6 @@
 // The rules of a game as one object: a Task is what a batch asks of the game it plays (docs/game.md §5, §9),
 // one file per game in this folder, chosen once per batch from the world config's task (the scene registry
-// physics::kScenes names a preset, the preset its WorldConfig::Task, task_for() the Task).
+// batch::kScenes names a preset, the preset its WorldConfig::Task, task_for() the Task).
 //
 //   hide_and_seek.cpp    the hide-and-seek game: quadrant, full, empty, and the food variants (with food.cpp)
 //   lock_tasks.cpp       lockbox, lock-and-return, sequential-lock (docs/game.md §9.2)
