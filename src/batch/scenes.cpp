@@ -1,4 +1,4 @@
-// The scene registry's lookups (scenes.hpp).
+// The scene registry's lookups (scenes.hpp); the rows' presets are in their games' files (tasks/).
 #include "batch/scenes.hpp"
 
 #include <algorithm>
@@ -39,11 +39,7 @@ std::string scene_list(const std::string& separator, std::optional<SceneFamily> 
 }
 
 BatchConfig scene_config(const std::string& name) {
-  if (const SceneInfo* s = find_scene(name)) {
-    BatchConfig config;
-    config.world = s->preset();
-    return config;
-  }
+  if (const SceneInfo* s = find_scene(name)) return s->preset();
   throw physics::ConfigError("scene = '" + name + "' is invalid: must be one of " + scene_list(", "));
 }
 

@@ -636,7 +636,8 @@ void TrainConfig::validate() const {
       }
     }
   });
-  const physics::WorldConfig w = world();  // throws for an unknown scene
+  const batch::BatchConfig game = batch_config();  // throws for an unknown scene
+  const physics::WorldConfig& w = game.world;
   try {
     (void)nn::net_preset(model);
   } catch (const std::invalid_argument&) {
@@ -644,7 +645,10 @@ void TrainConfig::validate() const {
   }
   check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");
   const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0 || spawn_quarter != 0;
-  check(!counts_set || !w.is_transfer_task(), "scene", scene,
+  const batch::SceneFamily family = batch::find_scene(scene)->family;
+  const bool hide_and_seek =
+      family == batch::SceneFamily::kHideAndSeek || family == batch::SceneFamily::kFood;
+  check(!counts_set || hide_and_seek, "scene", scene,
         "sets its own agent and object counts and spawns: the keys hiders, seekers, boxes, ramps and "
         "spawn_quarter are for the hide-and-seek scenes (quadrant, full, empty, food, dynamic-food)");
   check(spawn_quarter == 0 || spawn_quarter == 1, "spawn_quarter", spawn_quarter,
@@ -657,8 +661,7 @@ void TrainConfig::validate() const {
         "must be at least 1 in a scene with boxes (0 would drop the network's box type)");
   check(w.max_agents() >= 1, "hiders", hiders,
         "with seekers = " + std::to_string(seekers) + ": at least one agent is required");
-  w.validate();
-  w.scene.check_placeable();
+  game.validate();  // the world's, the rules' and whether the counts can be placed (the batch's are defaults)
   check(envs >= 1 && envs <= 65536, "envs", envs, "must be in [1, 65536]");
   check(episodes_per_iteration >= 1 && episodes_per_iteration <= 1000, "episodes_per_iteration",
         episodes_per_iteration, "must be in [1, 1000]");

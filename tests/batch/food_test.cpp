@@ -117,7 +117,7 @@ TEST(Food, NoHiderEatsWhileAHiderIsSeen) {
   EXPECT_FLOAT_EQ(t.s().reward[0], -1.0f);
 
   BatchConfig caught = food_config();
-  caught.world.food.eat_when_caught = true;
+  caught.rules.food.eat_when_caught = true;
   Staged u(caught, scene);
   u.step();
   EXPECT_FLOAT_EQ(u.s().food_eaten[0], 1.0f);
@@ -141,7 +141,7 @@ TEST(Food, NoEatingInThePreparationPhase) {
 // joint_mean every hider gets the hiders' mean (a third hider that ate nothing included).
 TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
   BatchConfig c = food_config();
-  c.world.food.max_health = 1.0;
+  c.rules.food.max_health = 1.0;
   const Scene scene =
       food_scene({agent_at(2.8, 3.25), agent_at(3.2, 3.25), agent_at(1.0, 1.0)}, {}, {food_at(3.0, 3.0)});
   Staged joint(c, scene);
@@ -154,7 +154,7 @@ TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
   EXPECT_EQ(joint.s().food_health[0], 0.0f);
   for (int a = 0; a < 3; ++a) EXPECT_FLOAT_EQ(joint.s().reward[a], 1.0f + 1.0f / 3.0f) << a;
 
-  c.world.food.joint_mean = false;
+  c.rules.food.joint_mean = false;
   Staged selfish(c, scene);
   selfish.step();
   EXPECT_FLOAT_EQ(selfish.s().reward[0], 1.5f);
@@ -166,7 +166,7 @@ TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
 // the hider standing at it eats again at step 7. The episode's statistic counts every unit.
 TEST(Food, AnEatenUpItemComesBackAfterRespawnSteps) {
   BatchConfig c = food_config();
-  c.world.food.max_health = 1.0;
+  c.rules.food.max_health = 1.0;
   Staged t(c, food_scene({agent_at(3.0, 3.3)}, {}, {food_at(3.0, 3.0)}));
   const float want[7] = {0, 0, 0, 0, 0, 1, 0};
   float eaten = 0;
