@@ -8,7 +8,7 @@
 
 #include "batch/batch_sim.hpp"
 #include "batch/ray_kernels.hpp"
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 
 namespace {
 
@@ -27,7 +27,7 @@ struct FullScene {
   static BatchConfig make_config() {
     BatchConfig c;
     c.world = hns::physics::WorldConfig::full();
-    hns::physics::apply_overrides(c.world, hns::physics::CountOverrides{2, 2, 9, 2});
+    hns::batch::apply_overrides(c.world, hns::batch::CountOverrides{2, 2, 9, 2});
     c.num_envs = 1;
     return c;
   }
@@ -112,8 +112,7 @@ BENCHMARK(BM_ObservationPacking);
 // in env-steps per second of thread time (physics, mirror, vision+lidar, observation packing) and its share
 // of the step's thread time (`*_share`, which tools/perf-gate shows for a flagged benchmark).
 void batch_step(benchmark::State& state, const char* scene) {
-  BatchConfig config;
-  config.world = hns::physics::world_preset(scene);
+  BatchConfig config = hns::batch::scene_config(scene);
   config.num_envs = 64;
   config.threads = int(state.range(0));
   BatchSim sim(config);

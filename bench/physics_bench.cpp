@@ -4,13 +4,11 @@
 
 #include <vector>
 
-#include "physics/presets.hpp"
 #include "physics/world.hpp"
 
 namespace {
 
 using hns::physics::AgentAction;
-using hns::physics::CountOverrides;
 using hns::physics::Rng;
 using hns::physics::World;
 using hns::physics::WorldConfig;
@@ -55,7 +53,9 @@ BENCHMARK(BM_WorldStepQuadrant)->Unit(benchmark::kMicrosecond);
 // Full game with 4 agents (2 v 2), 9 boxes and 2 ramps on random rooms.
 WorldConfig full_2v2_9_boxes() {
   WorldConfig config = WorldConfig::full();
-  hns::physics::apply_overrides(config, CountOverrides{2, 2, 9, 2});
+  config.scene.hiders = config.scene.seekers = {2, 2};
+  config.scene.boxes = {9, 9};  // the full scene's elongated range, 3 to 9, fits
+  config.scene.ramps = {2, 2};
   return config;
 }
 void BM_WorldStepFull(benchmark::State& state) {

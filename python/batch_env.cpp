@@ -6,15 +6,15 @@ std::unique_ptr<BatchEnv> make_env(const std::string& scene, int num_envs, int t
                                    const py::object& seed, std::optional<int> hiders,
                                    std::optional<int> seekers, std::optional<int> boxes,
                                    std::optional<int> ramps, std::optional<int> horizon) {
-  phys::WorldConfig world = phys::world_preset(scene);
-  phys::apply_overrides(world, phys::CountOverrides{hiders, seekers, boxes, ramps});
+  batch::BatchConfig game = batch::scene_config(scene);
+  batch::apply_overrides(game.world, batch::CountOverrides{hiders, seekers, boxes, ramps});
   if (horizon) {
     if (*horizon < 1) {
       raise(PyExc_ValueError, "horizon = " + std::to_string(*horizon) + " is invalid: must be >= 1");
     }
-    world.horizon = *horizon;
+    game.world.horizon = *horizon;
   }
-  return std::make_unique<BatchEnv>(scene, world, num_envs, threads, seed_from(seed));
+  return std::make_unique<BatchEnv>(scene, game, num_envs, threads, seed_from(seed));
 }
 
 void bind_batch_env(py::module_& m) {

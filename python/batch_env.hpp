@@ -13,9 +13,9 @@
 #include "batch/batch_sim.hpp"
 #include "batch/field_dims.hpp"
 #include "batch/host.hpp"
+#include "batch/scenes.hpp"
 #include "common.hpp"
 #include "nn/obs_store.hpp"
-#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "replay/recorder.hpp"
 #include "replay/render.hpp"
@@ -45,7 +45,8 @@ class BatchEnv {
   };
 
  public:
-  BatchEnv(const std::string& scene, const phys::WorldConfig& world, int num_envs, int threads, uint64_t seed)
+  // `game` with num_envs envs, `threads` threads and `seed` (the scene is its name, for the recordings).
+  BatchEnv(const std::string& scene, const batch::BatchConfig& game, int num_envs, int threads, uint64_t seed)
       : scene_(scene) {
     if (num_envs < 1 || num_envs > (1 << 22)) {
       raise(PyExc_ValueError,
@@ -55,8 +56,7 @@ class BatchEnv {
       raise(PyExc_ValueError,
             "threads = " + std::to_string(threads) + " is invalid: must be >= 0 (0 = every hardware thread)");
     }
-    batch::BatchConfig config;
-    config.world = world;
+    batch::BatchConfig config = game;
     config.num_envs = num_envs;
     config.threads = batch::usable_threads(threads);
     config.seed = seed;

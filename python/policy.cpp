@@ -107,8 +107,8 @@ class Policy {
   }
 
   std::unique_ptr<BatchEnv> make_env(int num_envs, int threads, const py::object& seed) const {
-    return std::make_unique<BatchEnv>(policy_->config().scene, policy_->config().world(), num_envs, threads,
-                                      seed_from(seed));
+    return std::make_unique<BatchEnv>(policy_->config().scene, policy_->config().batch_config(), num_envs,
+                                      threads, seed_from(seed));
   }
 
   const ppo::TrainConfig& config() const {

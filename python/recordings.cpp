@@ -167,7 +167,7 @@ py::dict record(const py::object& path_arg, const std::string& scene, const py::
     }
   }
   const replay::RecordConfig config =
-      replay::play_config(scene, policy.get(), phys::CountOverrides{hiders, seekers, boxes, ramps}, episodes,
+      replay::play_config(scene, policy.get(), batch::CountOverrides{hiders, seekers, boxes, ramps}, episodes,
                           envs, batch::usable_threads(threads), seed);
   batch::check_memory("envs = " + std::to_string(envs), config.game.estimated_bytes());
   replay::TrajectoryFile meta;

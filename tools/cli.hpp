@@ -80,7 +80,7 @@ using batch::check_memory;
 using batch::usable_threads;
 // "T threads" or, when the machine has fewer, "T threads requested, U available: U used".
 std::string threads_text(int requested);
-// The --help footer of the commands that take --scene: every scene of physics::kScenes with its family and
+// The --help footer of the commands that take --scene: every scene of batch::kScenes with its family and
 // one-line summary.
 std::string scene_help();
 // "1 env", "2 envs": n and the noun, plural unless n is 1 (plural_noun: noun + "s" when not given).

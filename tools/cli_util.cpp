@@ -10,9 +10,9 @@
 #include <fstream>
 #include <system_error>
 
+#include "batch/scenes.hpp"
 #include "cli.hpp"
 #include "nn/kernels.hpp"
-#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/trainer.hpp"
@@ -152,8 +152,8 @@ std::string scene_help() {
     return s;
   };
   std::string text = "Scenes:\n";
-  for (const physics::SceneInfo& s : physics::kScenes)
-    text += "  " + pad(s.name, 18) + pad(physics::family_name(s.family), 15) + s.summary + "\n";
+  for (const batch::SceneInfo& s : batch::kScenes)
+    text += "  " + pad(s.name, 18) + pad(batch::family_name(s.family), 15) + s.summary + "\n";
   return text;
 }
 

@@ -14,11 +14,11 @@
 #include <nlohmann/json.hpp>
 
 #include "batch/batch_sim.hpp"
+#include "batch/scenes.hpp"
 #include "cli.hpp"
 #include "nn/kernels.hpp"
 #include "nn/nn_bench.hpp"
 #include "nn/precision.hpp"
-#include "physics/presets.hpp"
 #include "ppo/batch_obs.hpp"
 
 namespace hns::tools {
@@ -52,9 +52,8 @@ constexpr int64_t kMaxProfileEvents = 4'000'000;  // about 400 MB of JSON: keep 
 // Throughput of the batch simulator with seeded uniformly random actions: env-steps/s, agent-steps/s and
 // the thread time per phase.
 int run_bench(const BenchOptions& opt) {
-  hns::batch::BatchConfig config;
-  config.world = phys::world_preset(opt.scene);
-  phys::apply_overrides(config.world, phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
+  hns::batch::BatchConfig config = batch::scene_config(opt.scene);
+  batch::apply_overrides(config.world, batch::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps});
   if (opt.substeps) config.world.physics.substeps = *opt.substeps;
   config.num_envs = opt.envs;
   config.threads = usable_threads(opt.threads);
@@ -150,8 +149,7 @@ int run_bench(const BenchOptions& opt) {
 // an entity and how often a present entity is seen, over the agents that exist.
 void measure_scene_masks(const std::string& scene, uint64_t seed, hns::nn::NnBenchOptions& o) {
   namespace hb = hns::batch;
-  hb::BatchConfig config;
-  config.world = phys::world_preset(scene);
+  hb::BatchConfig config = hb::scene_config(scene);
   config.num_envs = 16;
   config.threads = o.threads;
   config.seed = seed;
@@ -262,7 +260,7 @@ void add_bench_command(CLI::App& app, std::vector<Command>& commands) {
   auto opt = std::make_shared<BenchOptions>();
   CLI::App* cmd = app.add_subcommand("bench", "Throughput of the simulator with random actions");
   cmd->add_option("--scene", opt->scene, "Scene (the list below)")
-      ->check(CLI::IsMember(phys::scene_names()))
+      ->check(CLI::IsMember(batch::scene_names()))
       ->capture_default_str();
   cmd->footer(scene_help());
   cmd->add_option("--envs", opt->envs, "Number of envs")

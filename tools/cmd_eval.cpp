@@ -19,8 +19,8 @@
 #include <string>
 #include <vector>
 
+#include "batch/scenes.hpp"
 #include "cli.hpp"
-#include "physics/presets.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/eval.hpp"
 #include "ppo/trainer.hpp"
@@ -348,16 +348,16 @@ std::string page_html(const Summary& s, const json& settings) {
 std::vector<std::string> parse_tasks(const std::string& list) {
   std::vector<std::string> tasks = split_list(list);
   if (tasks.empty()) throw physics::ConfigError("--tasks '" + list + "': no task given");
-  const std::string transfer = physics::scene_list(", ", physics::SceneFamily::kTransfer);
+  const std::string transfer = batch::scene_list(", ", batch::SceneFamily::kTransfer);
   for (const std::string& t : tasks) {
-    const physics::SceneInfo* scene = physics::find_scene(t);
+    const batch::SceneInfo* scene = batch::find_scene(t);
     if (scene == nullptr)
       throw physics::ConfigError("--tasks: '" + t + "' is not a scene of hns; the transfer tasks are " +
                                  transfer);
-    if (scene->family == physics::SceneFamily::kProbe)
+    if (scene->family == batch::SceneFamily::kProbe)
       throw physics::ConfigError("--tasks: '" + t +
                                  "' is a probe of a frozen policy, not a task to train: run hns counting");
-    if (scene->family != physics::SceneFamily::kTransfer)
+    if (scene->family != batch::SceneFamily::kTransfer)
       throw physics::ConfigError("--tasks: '" + t + "' is not a transfer task (" + transfer + ")");
     if (std::count(tasks.begin(), tasks.end(), t) > 1)
       throw physics::ConfigError("--tasks: '" + t + "' is given twice");
@@ -635,7 +635,7 @@ void add_eval_command(CLI::App& app, std::vector<Command>& commands) {
   cmd->add_option("--out", opt->out, "Folder for eval.json, eval.md and eval.html")->required();
   cmd->add_option(
          "--tasks", opt->tasks,
-         "Comma-separated transfer tasks, of " + physics::scene_list(", ", physics::SceneFamily::kTransfer))
+         "Comma-separated transfer tasks, of " + batch::scene_list(", ", batch::SceneFamily::kTransfer))
       ->capture_default_str();
   cmd->add_option("--seeds", opt->seeds, "Seeds per task and condition (1 .. N)")->capture_default_str();
   cmd->add_option("--iterations", opt->iterations, "Training iterations per run (the fixed budget)")

@@ -1,6 +1,6 @@
 // `hns play`: records whole episodes into a trajectory file for `hns replay` (docs/trajectory-format.md).
 //
-//   hns play [--scene NAME (physics::kScenes)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
+//   hns play [--scene NAME (batch::kScenes)] [--random | --checkpoint FILE] [--episodes E] [--seed S]
 //   [--envs N]
 //            [--threads T] [--hiders H --seekers K --boxes B --ramps R] --out FILE [--gif ANIMATION]
 //            [--html PAGE]
@@ -13,8 +13,8 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
+#include "batch/scenes.hpp"
 #include "cli.hpp"
-#include "physics/presets.hpp"
 #include "ppo/policy.hpp"
 #include "replay/play.hpp"
 #include "replay/recorder.hpp"
@@ -60,7 +60,7 @@ int run_play(const PlayOptions& opt) {
   RecordConfig config;
   try {
     config = play_config(opt.scene, policy.get(),
-                         phys::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps}, opt.episodes,
+                         batch::CountOverrides{opt.hiders, opt.seekers, opt.boxes, opt.ramps}, opt.episodes,
                          opt.envs, usable_threads(opt.threads), opt.seed);
   } catch (const phys::ConfigError& e) {
     // The command line's names for the scene.
@@ -126,7 +126,7 @@ void add_play_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* cmd =
       app.add_subcommand("play", "Record episodes into a trajectory file (view with `hns replay`)");
   cmd->add_option("--scene", opt->scene, "Scene (the list below; default quadrant, or the checkpoint's)")
-      ->check(CLI::IsMember(phys::scene_names()));
+      ->check(CLI::IsMember(batch::scene_names()));
   cmd->footer(scene_help());
   CLI::Option* random = cmd->add_flag("--random", opt->random, "Uniformly random actions (the default)");
   cmd->add_option("--checkpoint", opt->checkpoint,

@@ -26,9 +26,9 @@
 #ifdef HNS_HAVE_MPI
 #include "ppo/mpi_comm.hpp"
 #endif
+#include "batch/scenes.hpp"
 #include "nn/kernels.hpp"
 #include "nn/precision.hpp"
-#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/policy.hpp"
@@ -95,7 +95,7 @@ void record_replay(const ppo::Trainer& trainer, const std::string& path, int epi
   RecordConfig rc;
   rc.scene = cfg.scene;
   rc.episodes = episodes;
-  rc.game.world = cfg.world();
+  rc.game = cfg.batch_config();
   rc.game.num_envs = episodes;
   rc.game.threads = 1;
   rc.game.seed = cfg.seed * 1000003ULL + uint64_t(trainer.iteration());
@@ -709,7 +709,7 @@ void add_train_command(CLI::App& app, std::vector<Command>& commands) {
   CLI::App* sub = app.add_subcommand("train", "Train hide-and-seek agents with PPO self-play");
   sub->add_option("--config", opt->config_file, "Flat JSON config file (keys as in a run's config.json)");
   const ppo::TrainConfig defaults;
-  const std::string scenes = physics::scene_list(" | ");
+  const std::string scenes = batch::scene_list(" | ");
   auto dflt = [](const auto& value) {
     if constexpr (std::is_convertible_v<decltype(value), std::string>) {
       return " (default " + std::string(value) + ")";

@@ -39,7 +39,7 @@ BatchSim::BatchSim(const BatchConfig& config) : config_(config), epoch_(std::chr
   config_.validate();
   config_.world.compute_visibility = false;  // the batch's SIMD vision fills it
   layout_ = Layout::of(config_);
-  task_ = &task_for(config_.world.task);
+  task_ = config_.rules.task;
   if (layout_.others + layout_.max_boxes + layout_.max_ramps + layout_.max_food > kMaxSightLines) {
     throw std::logic_error(std::string(__FILE__) + ":" + std::to_string(__LINE__) + ": more than " +
                            std::to_string(kMaxSightLines) + " vision targets per agent");

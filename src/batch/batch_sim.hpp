@@ -17,6 +17,7 @@
 #include <span>
 #include <vector>
 
+#include "batch/game.hpp"
 #include "batch/ray_kernels.hpp"
 #include "batch/stage_stats.hpp"
 #include "common/aligned_buffer.hpp"
@@ -28,8 +29,11 @@ using physics::AgentAction;
 struct EnvRef;
 class Task;
 
+// A batch: the game its envs play (the world and the rules; a scene's preset sets both, batch/scenes.hpp)
+// and how it runs. The defaults play the quadrant game.
 struct BatchConfig {
   physics::WorldConfig world = physics::WorldConfig::quadrant();
+  GameRules rules;
   int num_envs = 64;
   int threads = 1;    // TBB worker threads used by step()
   uint64_t seed = 1;  // env e's episode k is drawn from (seed, first_env + e, k)
@@ -37,7 +41,7 @@ struct BatchConfig {
   // exactly what env first_env + e of one batch of all the envs would.
   int64_t first_env = 0;
   int envs_per_task = 4;  // fixed work partition, independent of the thread count
-  // Throws physics::ConfigError naming the first bad field.
+  // Throws physics::ConfigError naming the first bad field: the world's, then the rules', then the batch's.
   void validate() const;
   // Estimated memory of a BatchSim of this config, bytes: its state plus each env's world (ODE bodies,
   // geoms, solver scratch), from measurements (within about 25 %).

@@ -27,6 +27,7 @@ int max_walls(const physics::SceneConfig& scene) {
 
 void BatchConfig::validate() const {
   world.validate();
+  rules.validate(world);
   world.scene.check_placeable();
   auto check = [](bool ok, const char* field, long long value, const char* allowed) {
     if (!ok) {

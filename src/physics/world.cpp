@@ -42,17 +42,42 @@ void set_yaw(dBodyID body, double yaw) {
   dBodySetQuaternion(body, q);
 }
 
-std::string describe(const char* field, double value, const char* allowed) {
-  // The shortest text that reads back as the value: 1000001 and 0.1, not 1e+06 or 0.10000000000000001.
-  char buf[32];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value);
-  return std::string(field) + " = " + std::string(buf, ec == std::errc() ? end : buf) +
-         " is invalid: " + allowed;
-}
-
 }  // namespace
 
 using namespace world_detail;
+
+void check_field(bool ok, std::string_view field, double value, std::string_view allowed) {
+  if (ok) return;
+  char buf[32];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, value);
+  throw ConfigError(std::string(field) + " = " + std::string(buf, ec == std::errc() ? end : buf) +
+                    " is invalid: " + std::string(allowed));
+}
+
+// The hide-and-seek game's worlds (world.hpp); the scenes built on them are batch/scenes.hpp's.
+WorldConfig WorldConfig::quadrant() {
+  WorldConfig c;
+  c.scene = SceneConfig::quadrant();
+  c.horizon = 80;
+  c.lock_ramps = false;
+  return c;
+}
+
+WorldConfig WorldConfig::full() {
+  WorldConfig c;
+  c.scene = SceneConfig::full();
+  c.horizon = 240;
+  c.lock_ramps = true;
+  return c;
+}
+
+WorldConfig WorldConfig::empty() {
+  WorldConfig c;
+  c.scene = SceneConfig::empty();
+  c.horizon = 80;
+  c.lock_ramps = true;
+  return c;
+}
 
 int WorldConfig::prep_steps() const {
   return int(std::ceil(prep_fraction * horizon - 1e-9));
@@ -60,9 +85,7 @@ int WorldConfig::prep_steps() const {
 
 void WorldConfig::validate() const {
   scene.validate();
-  auto check = [](bool ok, const char* field, double value, const char* allowed) {
-    if (!ok) throw ConfigError(describe(field, value, allowed));
-  };
+  const auto check = check_field;
   check(horizon >= 1 && horizon <= 1000000, "horizon", horizon, "must be in [1, 1000000]");
   check(prep_fraction >= 0 && prep_fraction < 1, "prep_fraction", prep_fraction, "must be in [0, 1)");
   check(grab_radius > 0 && grab_radius <= 2, "grab_radius", grab_radius, "must be in (0, 2] m");
@@ -81,38 +104,8 @@ void WorldConfig::validate() const {
   check(physics.cfm >= 0 && physics.cfm <= 1, "physics.cfm", physics.cfm, "must be in [0, 1]");
   check(physics.contact_surface_layer >= 0 && physics.contact_surface_layer <= 0.05,
         "physics.contact_surface_layer", physics.contact_surface_layer, "must be in [0, 0.05] m");
-  check(task == Task::kHideAndSeek || task == Task::kLockBox || task == Task::kLockReturn ||
-            task == Task::kSequentialLock || task == Task::kShelter || task == Task::kBlueprint ||
-            task == Task::kCounting,
-        "task", int(task),
-        "must be hide_and_seek (0), lockbox (1), lock_return (2), sequential_lock (3), shelter (4), "
-        "blueprint (5) or counting (6)");
-  check(!is_transfer_task() || scene.hiders.min >= 1, "hiders.min", scene.hiders.min,
-        "must be >= 1 in a transfer task (agent 0 does the task)");
-  check(task != Task::kShelter || scene.target_diameter_max > 0, "target_diameter_max",
-        scene.target_diameter_max, "must be > 0 in the shelter task (its cylinder)");
-  check(task != Task::kBlueprint || scene.sites.min >= 1, "sites.min", scene.sites.min,
-        "must be >= 1 in the blueprint task (its construction sites)");
-  check(task != Task::kBlueprint || scene.boxes.min >= 1, "boxes.min", scene.boxes.min,
-        "must be >= 1 in the blueprint task (its building blocks)");
-  check(scene.sites.max == 0 || task == Task::kBlueprint, "sites.max", scene.sites.max,
-        "must be 0 outside the blueprint task (construction sites are its rules')");
-  check((task == Task::kCounting) == (scene.layout == Layout::kCounting), "scene.layout", int(scene.layout),
-        "the counting layout goes with the object-counting task, and only with it");
-  check(scene.food.max == 0 || task == Task::kHideAndSeek, "food.max", scene.food.max,
-        "must be 0 in a transfer task (food is a variant of hide-and-seek)");
-  check(food.eat_radius > 0 && food.eat_radius <= 10, "food.eat_radius", food.eat_radius,
-        "must be in (0, 10] m");
-  check(food.max_health > 0 && food.max_health <= 1e6, "food.max_health", food.max_health,
-        "must be in (0, 1000000] units");
-  check(food.respawn_steps >= 0 && food.respawn_steps <= 1000000, "food.respawn_steps", food.respawn_steps,
-        "must be in [0, 1000000] (0: never)");
-  check(std::isfinite(food.reward_scale) && std::abs(food.reward_scale) <= 1e3, "food.reward_scale",
-        food.reward_scale, "must be in [-1000, 1000]");
   check(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents, "must be in [0, 32]");
   check(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps, "must be in [0, 16]");
-  check(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0], "must be < x_max");
-  check(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1], "must be < y_max");
   check(physics.max_correcting_vel > 0, "physics.max_correcting_vel", physics.max_correcting_vel,
         "must be > 0");
   check(physics.floor_cfm >= 0 && physics.floor_cfm <= 0.1, "physics.floor_cfm", physics.floor_cfm,

@@ -12,6 +12,7 @@
 #include <memory>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "physics/geometry.hpp"
@@ -43,24 +44,8 @@ struct PhysicsConfig {
   int sleep_substeps = 5;
 };
 
-// The food variants' eating rules (docs/game.md §5.4; the scene's food count, placement and clustering are in
-// SceneConfig). Applied by the batch layer after each step: a hider eats 1 unit per step of every item with
-// health left within eat_radius (3-D, from its centre) that it saw in the previous observation while no
-// hider was seen, outside the preparation phase (seekers never eat); if the hiders at one item would eat
-// more than it has, they share what is left. An item eaten up stays empty for respawn_steps steps, then its
-// health resets (and, with relocate, it moves to a new spot of its placement region: dynamic food).
-struct FoodConfig {
-  double eat_radius = 0.5;    // m (the original's food_radius)
-  double max_health = 40.0;   // units per item
-  int respawn_steps = 5;      // 0 = an eaten-up item never comes back
-  bool relocate = false;      // dynamic food
-  bool joint_mean = true;     // each hider gets the hiders' mean of units eaten (false: its own, 'selfish')
-  double reward_scale = 1.0;  // reward per unit
-  bool eat_when_caught = false;  // true: hiders eat even while a hider is seen
-};
-
-// Everything a world needs. Presets: the static factories below, one per scene of the registry (defined in
-// presets.cpp, beside physics::kScenes).
+// Everything a world needs. The scenes (batch::kScenes, batch/scenes.hpp) set it beside the rules only the
+// batch reads (batch::GameRules: the game, the out-of-bounds rectangle, the food).
 struct WorldConfig {
   SceneConfig scene = SceneConfig::quadrant();
   PhysicsConfig physics;
@@ -71,62 +56,21 @@ struct WorldConfig {
   double grab_release_slack = 0.05;  // m, a held object is released beyond grab_radius + slack (§14.2)
   double lock_radius = 0.25;         // m (docs/game.md §3.4)
   bool compute_visibility = true;    // fill the agent-object visibility after reset and each step
-  // Game rules applied by the batch layer (docs/game.md §5.2): an agent whose centre leaves this rectangle
-  // [x_min, y_min, x_max, y_max] (m) gets -10 that step; with penalize_objects_out, a box or ramp outside it
-  // costs every agent -10.
-  double restrict_rect[4] = {0.1, 0.1, 5.9, 5.9};
-  bool penalize_objects_out = true;
-  // The game the world plays: the hide-and-seek game (docs/game.md §5) or one of the single-agent tasks of
-  // docs/game.md §9, agent 0 alone: the box-locking tasks kLockBox (the nearest unlocked box; the PPO
-  // learning test), kLockReturn (then back to the spawn) and kSequentialLock (boxes in index order, locks of
-  // boxes after the first unlocked one refused: the world's own rule); shelter and blueprint construction;
-  // kCounting, the object-counting probe (the agent pinned, the boxes on a script, no reward). The rules the
-  // batch applies (rewards, scripts, extra observations) are the task's, one file per game in
-  // src/batch/tasks/.
-  enum class Task : uint8_t {
-    kHideAndSeek,
-    kLockBox,
-    kLockReturn,
-    kSequentialLock,
-    kShelter,
-    kBlueprint,
-    kCounting
-  };
-  Task task = Task::kHideAndSeek;
+  // Locks of boxes after the first unlocked one (in index order) are refused (the sequential-lock task,
+  // docs/game.md §9.2).
+  bool lock_in_order = false;
   // Observation slots at least this many (0 = the scene's maxima): a transfer task's lone agent sees a
   // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (docs/game.md §9 spoofed obs).
   int obs_min_agents = 0;
   int obs_min_ramps = 0;
-  // The food variants (the scene's food items; without any, nothing here applies).
-  FoodConfig food;
-  // A single-agent task of docs/game.md §9 (agent 0 does it; every agent slot gets its reward).
-  bool is_transfer_task() const { return task != Task::kHideAndSeek; }
-  // kSequentialLock: box locks are refused for boxes after the first unlocked one.
-  bool lock_in_order() const { return task == Task::kSequentialLock; }
 
+  // The worlds of the hide-and-seek game's scenes (docs/game.md §2.1), for what steps worlds without a batch
+  // (the physics tests and benchmarks, the MuJoCo parity tool) and as the scenes' starting points; the
+  // scenes (batch/scenes.hpp) add the rules. quadrant: the room with doors, horizon 80; full: random rooms,
+  // lockable ramps, horizon 240; empty: the arena without inner walls, lockable ramps, horizon 80.
   static WorldConfig quadrant();
   static WorldConfig full();
   static WorldConfig empty();
-  // One hider and one cube in the empty room, task kLockBox, horizon 60, no preparation phase.
-  static WorldConfig lockbox();
-  // The transfer tasks of docs/game.md §9.2: lock the box in one of 6 random rooms and return to the spawn
-  // (horizon 120); lock 4 boxes in order in the 3 door-less var_tri rooms, one lockable ramp per room
-  // (horizon 120).
-  static WorldConfig lock_and_return();
-  static WorldConfig sequential_lock();
-  // docs/game.md §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5,
-  // 2] m, horizon 240.
-  static WorldConfig shelter();
-  // docs/game.md §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
-  static WorldConfig blueprint();
-  // The paper's object counting (§6; docs/transfer.md): the fixed counting stage, 6 cubes, horizon 80.
-  static WorldConfig object_counting();
-  // The paper's food variants of the full game (docs/food.md): 5 items of 40 units close together in the
-  // centred square (food_middle 0.25), respawning 5 steps after they are eaten up ("food"); and one item of
-  // 1 unit that moves to a new spot of the centred square (food_middle 0.2; both are cells 11 .. 16) when
-  // eaten, with 3 hiders, 2 seekers and 8 elongated boxes in an arena without walls ("dynamic-food").
-  static WorldConfig food_game();
-  static WorldConfig dynamic_food_game();
   // Throws ConfigError naming the first bad field (the scene's fields included).
   void validate() const;
   int prep_steps() const;
@@ -134,6 +78,10 @@ struct WorldConfig {
   // Agent slots of a batch of this world: max_agents(), at least obs_min_agents (batch::Layout's A).
   int agent_slots() const { return std::max(max_agents(), obs_min_agents); }
 };
+
+// Throws ConfigError "field = value is invalid: allowed" unless `ok`, the value in the shortest form that
+// reads back as it (1000001 and 0.1, not 1e+06 or 0.10000000000000001).
+void check_field(bool ok, std::string_view field, double value, std::string_view allowed);
 
 enum class Team : uint8_t { kHider = 0, kSeeker = 1 };
 

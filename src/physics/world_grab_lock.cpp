@@ -76,7 +76,7 @@ void World::apply_lock(std::span<const AgentAction> actions) {
   // Sequential lock: lock requests for boxes after the first unlocked one (as this step starts) are masked,
   // as if the agent did not press lock.
   int next_in_order = num_boxes();
-  if (config_.lock_in_order()) {
+  if (config_.lock_in_order) {
     for (int b = num_boxes() - 1; b >= 0; --b) {
       if (locked_[b] == 0) next_in_order = b;
     }

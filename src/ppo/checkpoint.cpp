@@ -191,8 +191,7 @@ Trainer::CheckpointState Trainer::read_checkpoint(
   // The saved run's shapes: its scene decides them (the same as this run's, except in initialize_from).
   nn::NetConfig saved_net = net_->config();
   {
-    batch::BatchConfig bc;
-    bc.world = saved.world();
+    batch::BatchConfig bc = saved.batch_config();
     saved_net.obs = obs_shape(batch::Layout::of(bc));
   }
   st.shape = saved_net.obs;
@@ -325,8 +324,7 @@ std::string Trainer::initialize_from(const std::string& path) {
   CheckpointState st = read_checkpoint(path, [&](const TrainConfig& saved) -> std::string {
     if (saved.model != cfg_.model)
       return "model: checkpoint has " + saved.model + ", this run has " + cfg_.model;
-    batch::BatchConfig bc;
-    bc.world = saved.world();
+    batch::BatchConfig bc = saved.batch_config();
     const nn::ObsShape theirs = obs_shape(batch::Layout::of(bc));
     // The weights depend on which entity types a scene has, not on their slot counts (the embeddings are
     // shared by the slots of a type and pooled): a hide-and-seek policy acts in a transfer task with more or

@@ -1,6 +1,7 @@
 #include "ppo/counting.hpp"
 
 #include "batch/host.hpp"
+#include "batch/scenes.hpp"
 #include "nn/adam.hpp"
 #include "nn/layers.hpp"
 #include "physics/rng.hpp"
@@ -16,11 +17,11 @@ namespace hns::ppo {
 void collect_counting_states(const Trainer& trainer, int64_t first_episode, int episodes, int envs,
                              int threads, std::vector<float>& states, std::vector<int32_t>& labels) {
   const TrainConfig& tc = trainer.config();
-  if (tc.world().task != physics::WorldConfig::Task::kCounting)
+  const batch::SceneInfo* scene = batch::find_scene(tc.scene);
+  if (scene == nullptr || scene->family != batch::SceneFamily::kProbe)
     throw std::invalid_argument("collect_counting_states: the trainer's scene is " + tc.scene +
                                 ", not object-counting");
-  batch::BatchConfig bc;
-  bc.world = tc.world();
+  batch::BatchConfig bc = tc.batch_config();
   bc.num_envs = envs;
   bc.threads = batch::usable_threads(threads);
   bc.seed = tc.seed;

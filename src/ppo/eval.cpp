@@ -17,8 +17,7 @@ double random_policy_return(const TrainConfig& cfg, int episodes) {
     throw physics::ConfigError("random-policy episodes = " + std::to_string(episodes) +
                                " is invalid: must be in [1, 1000000]");
   }
-  batch::BatchConfig bc;
-  bc.world = cfg.world();
+  batch::BatchConfig bc = cfg.batch_config();
   bc.num_envs = std::min(cfg.envs, episodes);
   bc.threads = batch::usable_threads(cfg.threads);
   bc.seed = cfg.seed;

@@ -13,9 +13,9 @@
 
 #include "batch/batch_sim.hpp"
 #include "batch/host.hpp"
+#include "batch/scenes.hpp"
 #include "nn/actor_critic.hpp"
 #include "nn/entity_net.hpp"
-#include "physics/presets.hpp"
 #include "physics/scene.hpp"
 #include "ppo/batch_obs.hpp"
 
@@ -548,19 +548,19 @@ int TrainConfig::minibatches_for(int64_t chunks) const {
   return int(std::min<int64_t>(n, chunks));
 }
 
-physics::WorldConfig TrainConfig::world() const {
-  physics::WorldConfig w = physics::world_preset(scene);
+batch::BatchConfig TrainConfig::batch_config() const {
+  batch::BatchConfig game = batch::scene_config(scene);
+  physics::WorldConfig& w = game.world;
   if (horizon > 0) w.horizon = horizon;
   const bool had_others = w.max_agents() > 1, had_ramps = w.scene.ramps.max > 0;
   auto count = [](int v) { return v >= 0 ? std::optional<int>(v) : std::nullopt; };
-  physics::apply_overrides(
-      w, physics::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
+  batch::apply_overrides(w, batch::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
   // Keep the entity types of the scene in the observation: a lone agent still has an (empty) other-agent
   // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (docs/game.md §9).
   if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
   if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
   if (spawn_quarter == 1) w.scene.spawn_quarter = true;
-  return w;
+  return game;
 }
 
 int TrainConfig::envs_per_rank(int ranks) const {
@@ -582,8 +582,7 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   constexpr double kMargin = 1.25;
   constexpr size_t kFixedBytes = size_t(48) << 20;
   const int rank_envs = envs_per_rank(ranks);
-  batch::BatchConfig bc;
-  bc.world = world();
+  batch::BatchConfig bc = batch_config();
   bc.num_envs = rank_envs;
   const batch::Layout L = batch::Layout::of(bc);
   nn::NetConfig net = nn::net_preset(model);
@@ -637,7 +636,8 @@ void TrainConfig::validate() const {
       }
     }
   });
-  const physics::WorldConfig w = world();  // throws for an unknown scene
+  const batch::BatchConfig game = batch_config();  // throws for an unknown scene
+  const physics::WorldConfig& w = game.world;
   try {
     (void)nn::net_preset(model);
   } catch (const std::invalid_argument&) {
@@ -645,7 +645,10 @@ void TrainConfig::validate() const {
   }
   check(horizon >= 0 && horizon <= 100000, "horizon", horizon, "must be in [0, 100000] (0 = the scene's)");
   const bool counts_set = hiders >= 0 || seekers >= 0 || boxes >= 0 || ramps >= 0 || spawn_quarter != 0;
-  check(!counts_set || !w.is_transfer_task(), "scene", scene,
+  const batch::SceneFamily family = batch::find_scene(scene)->family;
+  const bool hide_and_seek =
+      family == batch::SceneFamily::kHideAndSeek || family == batch::SceneFamily::kFood;
+  check(!counts_set || hide_and_seek, "scene", scene,
         "sets its own agent and object counts and spawns: the keys hiders, seekers, boxes, ramps and "
         "spawn_quarter are for the hide-and-seek scenes (quadrant, full, empty, food, dynamic-food)");
   check(spawn_quarter == 0 || spawn_quarter == 1, "spawn_quarter", spawn_quarter,
@@ -654,12 +657,11 @@ void TrainConfig::validate() const {
   check(seekers >= -1 && seekers <= 32, "seekers", seekers, "must be in [0, 32] (-1 = the scene's)");
   check(boxes >= -1 && boxes <= 32, "boxes", boxes, "must be in [0, 32] (-1 = the scene's)");
   check(ramps >= -1 && ramps <= 16, "ramps", ramps, "must be in [0, 16] (-1 = the scene's)");
-  check(boxes != 0 || physics::world_preset(scene).scene.boxes.max == 0, "boxes", boxes,
+  check(boxes != 0 || batch::scene_config(scene).world.scene.boxes.max == 0, "boxes", boxes,
         "must be at least 1 in a scene with boxes (0 would drop the network's box type)");
   check(w.max_agents() >= 1, "hiders", hiders,
         "with seekers = " + std::to_string(seekers) + ": at least one agent is required");
-  w.validate();
-  w.scene.check_placeable();
+  game.validate();  // the world's, the rules' and whether the counts can be placed (the batch's are defaults)
   check(envs >= 1 && envs <= 65536, "envs", envs, "must be in [1, 65536]");
   check(episodes_per_iteration >= 1 && episodes_per_iteration <= 1000, "episodes_per_iteration",
         episodes_per_iteration, "must be in [1, 1000]");

@@ -11,6 +11,7 @@
 #include <string>
 #include <string_view>
 
+#include "batch/batch_sim.hpp"
 #include "nn/precision.hpp"
 #include "physics/world.hpp"
 
@@ -21,7 +22,7 @@ inline constexpr int64_t kMaxRolloutRows = int64_t(1) << 24;
 
 struct TrainConfig {
   // Game and model.
-  std::string scene = "quadrant";  // physics::kScenes (physics::world_preset)
+  std::string scene = "quadrant";  // batch::kScenes (batch::scene_config)
   std::string model = "small";     // small | paper (nn::net_preset)
   int horizon = 0;                 // env steps per episode; 0 = the scene preset's
   // Fixed counts per episode instead of the scene's ranges (-1 = the scene's), for the hide-and-seek
@@ -103,8 +104,11 @@ struct TrainConfig {
   size_t estimated_bytes(int ranks = 1) const;
   // Envs of the rank with the most of them when `ranks` processes share the update blocks.
   int envs_per_rank(int ranks) const;
-  // The world this config trains on (preset with the horizon override).
-  physics::WorldConfig world() const;
+  // The game this config trains on: the scene's preset with the horizon and count overrides (the batch's
+  // own fields, envs, threads and seed, at their defaults).
+  batch::BatchConfig batch_config() const;
+  // Its world.
+  physics::WorldConfig world() const { return batch_config().world; }
   int rollout_steps() const { return world().horizon * episodes_per_iteration; }
   // BPTT chunks in the rollout buffer (every agent slot's; padding agents' chunks are left out of the
   // update).

@@ -185,8 +185,7 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   block1_ = int(int64_t(blocks_) * (r + 1) / R);
   env0_ = block_env(block0_);
   env1_ = block_env(block1_);
-  batch::BatchConfig bc;
-  bc.world = cfg_.world();
+  batch::BatchConfig bc = cfg_.batch_config();
   bc.num_envs = env1_ - env0_;
   bc.first_env = env0_;
   bc.threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();

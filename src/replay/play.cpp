@@ -3,20 +3,20 @@
 namespace hns::replay {
 
 RecordConfig play_config(const std::string& scene, const ppo::Policy* policy,
-                         const physics::CountOverrides& counts, int episodes, int envs, int threads,
+                         const batch::CountOverrides& counts, int episodes, int envs, int threads,
                          uint64_t seed) {
   RecordConfig config;
   config.scene = scene.empty() ? "quadrant" : scene;
-  config.game.world = physics::world_preset(config.scene);
+  config.game = batch::scene_config(config.scene);
   if (policy != nullptr) {
     if (!scene.empty() && scene != policy->config().scene) {
       throw physics::ConfigError("scene = " + scene + ": the checkpoint was trained on scene '" +
                                  policy->config().scene + "' (leave the scene out to use it)");
     }
     config.scene = policy->config().scene;
-    config.game.world = policy->config().world();
+    config.game = policy->config().batch_config();
   }
-  physics::apply_overrides(config.game.world, counts);
+  batch::apply_overrides(config.game.world, counts);
   config.episodes = episodes;
   // More envs than episodes would only play episodes nobody records.
   config.game.num_envs = std::min(envs, episodes);

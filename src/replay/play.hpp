@@ -4,7 +4,7 @@
 
 #include <string>
 
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 #include "ppo/policy.hpp"
 #include "replay/recorder.hpp"
 
@@ -15,7 +15,7 @@ namespace hns::replay {
 // is a physics::ConfigError), the count overrides, `threads` worker threads (already resolved), `seed`.
 // Validated (physics::ConfigError naming the field); the memory check is the caller's.
 RecordConfig play_config(const std::string& scene, const ppo::Policy* policy,
-                         const physics::CountOverrides& counts, int episodes, int envs, int threads,
+                         const batch::CountOverrides& counts, int episodes, int envs, int threads,
                          uint64_t seed);
 
 // The actions of a recording: the policy's (sampled, its streams per env and episode), or uniformly random

@@ -83,8 +83,9 @@ void capture(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, int t,
 }
 
 // The header of the env's current episode (its scene, the game's settings), blocks sized for `frames`.
-void header(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, const phys::WorldConfig& game,
+void header(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, const batch::BatchConfig& config,
             const std::string& scene_name, uint64_t seed, int frames) {
+  const phys::WorldConfig& game = config.world;
   const phys::World& world = sim.world(env);
   const phys::Scene& scene = world.scene();
   ep = TrajectoryEpisode{};
@@ -110,14 +111,14 @@ void header(TrajectoryEpisode& ep, const batch::BatchSim& sim, int env, const ph
   ep.sites.clear();
   for (const phys::Spawn& c : scene.sites) ep.sites.push_back({c.x, c.y, c.sx});
   for (const phys::Spawn& b : scene.boxes) ep.box_sizes.push_back({b.sx, b.sy, b.sz});
-  std::copy(std::begin(game.restrict_rect), std::end(game.restrict_rect), ep.restrict_rect.begin());
+  const double* rect = config.rules.restrict_rect;
+  std::copy(rect, rect + 4, ep.restrict_rect.begin());
   ep.resize(frames);
 }
 
 // Starts recording the env's current episode: header from its scene, frame 0 from the reset state.
 void start(EnvRecording& rec, const batch::BatchSim& sim, int env, const RecordConfig& config) {
-  const phys::WorldConfig& game = config.game.world;
-  header(rec.ep, sim, env, game, config.scene, config.game.seed, game.horizon + 1);
+  header(rec.ep, sim, env, config.game, config.scene, config.game.seed, config.game.world.horizon + 1);
   capture(rec.ep, sim, env, 0, {});
   rec.active = true;
   rec.last_frame = 0;
@@ -143,7 +144,7 @@ TrajectoryEpisode snapshot(const batch::BatchSim& sim, int env, const std::strin
                                 std::to_string(sim.config().num_envs - 1));
   }
   TrajectoryEpisode ep;
-  header(ep, sim, env, sim.config().world, scene, sim.config().seed, 1);
+  header(ep, sim, env, sim.config(), scene, sim.config().seed, 1);
   capture(ep, sim, env, 0, {});
   // As in a recording, frame t (after t steps) lies in the preparation phase while t <= prep_steps.
   ep.prep[0] = sim.world(env).step_count() <= ep.prep_steps ? 1 : 0;

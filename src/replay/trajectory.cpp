@@ -16,7 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 #include "physics/scene.hpp"
 #include "ppo/atomic_file.hpp"
 #include "replay/metrics.hpp"
@@ -380,7 +380,7 @@ void read_episode_header(const Fields& f, const Chunk& c, TrajectoryEpisode& ep)
   // Names the pages show: only hns's own (a page built from a file someone sent must not take markup from
   // it).
   ep.scene = f.string("scene");
-  if (physics::find_scene(ep.scene) == nullptr)
+  if (batch::find_scene(ep.scene) == nullptr)
     f.fail("scene", "is not a scene of hns" + f.got(c.header["scene"]));
   ep.layout = f.string("layout");
   try {

@@ -49,7 +49,7 @@ enum LockState : uint8_t { kUnlocked = 0, kLockedByHiders = 1, kLockedBySeekers 
 // One recorded episode: the scene (header) and per-frame blocks.
 struct TrajectoryEpisode {
   // Header.
-  std::string scene;   // preset (physics::kScenes)
+  std::string scene;   // preset (batch::kScenes)
   std::string layout;  // wall layout: quadrant, randomwalls, empty, var_tri
   uint64_t seed = 0;   // the run's seed; with env and episode it names the scene's random stream
   int env = 0;

@@ -1,5 +1,6 @@
 // BatchSim: vision and lidar on hand-built scenes, rewards, auto-reset, observation layout, determinism.
 #include "batch/batch_sim.hpp"
+#include "batch/scenes.hpp"
 
 #include <gtest/gtest.h>
 
@@ -29,7 +30,7 @@ BatchConfig test_config(int envs = 1) {
   c.world.scene.ramps = {0, 2};
   c.world.prep_fraction = 0.0;
   c.world.horizon = 100;
-  c.world.penalize_objects_out = false;
+  c.rules.penalize_objects_out = false;
   c.num_envs = envs;
   return c;
 }
@@ -209,8 +210,8 @@ TEST(BatchRewards, ZeroDuringPreparation) {
 
 TEST(BatchRewards, OutOfBoundsReplacesReward) {
   BatchConfig config = test_config();
-  config.world.restrict_rect[0] = 0.1;
-  config.world.restrict_rect[2] = 5.9;
+  config.rules.restrict_rect[0] = 0.1;
+  config.rules.restrict_rect[2] = 5.9;
   BatchSim sim(config);
   const std::vector<AgentAction> idle(sim.layout().max_agents);
   // The hider is hidden (behind the seeker), but stands outside the play area.
@@ -219,7 +220,7 @@ TEST(BatchRewards, OutOfBoundsReplacesReward) {
   EXPECT_EQ(sim.state().reward[0], -10.0f);
   EXPECT_EQ(sim.state().reward[1], -1.0f);
   // Quadrant rule: a box out of bounds costs everyone -10.
-  config.world.penalize_objects_out = true;
+  config.rules.penalize_objects_out = true;
   BatchSim quadrant(config);
   quadrant.load_scene(0, scene_of({agent(2.0, 5.0)}, {agent(3.0, 4.0)}, {cube(6.5, 3.0)}));
   quadrant.step(idle);
@@ -227,9 +228,9 @@ TEST(BatchRewards, OutOfBoundsReplacesReward) {
   EXPECT_EQ(quadrant.state().reward[1], -10.0f);
 }
 
-// Joint zero-sum in 2 v 2 (docs/game.md §5.1): one seeker sees one hider, the other seeker sees nobody and the other
-// hider is unseen. Every hider gets -1 and every seeker +1; selfish rewards would give the unseen hider +1
-// and the blind seeker -1, team means 0 to everyone.
+// Joint zero-sum in 2 v 2 (docs/game.md §5.1): one seeker sees one hider, the other seeker sees nobody and
+// the other hider is unseen. Every hider gets -1 and every seeker +1; selfish rewards would give the unseen
+// hider +1 and the blind seeker -1, team means 0 to everyone.
 TEST(BatchRewards, JointZeroSumInTwoVersusTwo) {
   BatchSim sim(test_config());
   sim.load_scene(0, scene_of({agent(3.0, 1.0), agent(1.0, 5.0)}, {agent(3.0, 4.0), agent(5.0, 4.0)}));
@@ -296,8 +297,8 @@ TEST(BatchObservations, LockFeaturesSizesAndRampRows) {
   EXPECT_EQ(st.mask_boxes[0], 1) << "hider 0 sees the box it locked";
 }
 
-// prep_obs (docs/game.md §4.3) = t / (prep + 1e-5): below 1 through the preparation phase, exactly 1 from step
-// prep + 1; in every agent's own and other-agent rows.
+// prep_obs (docs/game.md §4.3) = t / (prep + 1e-5): below 1 through the preparation phase, exactly 1 from
+// step prep + 1; in every agent's own and other-agent rows.
 TEST(BatchObservations, PrepObservationReachesOneAfterStepPrepPlusOne) {
   BatchConfig config = test_config();
   config.world.prep_fraction = 0.4;
@@ -336,8 +337,8 @@ TEST(BatchObservations, PrepObservationReachesOneAfterStepPrepPlusOne) {
   }
 }
 
-// The docs/game.md §7 preparation statistics are taken when prep_obs first reads 1, after step prep + 1 (the last
-// step whose actions were chosen while prep_obs was below 1): a box moved during that step counts, a box
+// The docs/game.md §7 preparation statistics are taken when prep_obs first reads 1, after step prep + 1 (the
+// last step whose actions were chosen while prep_obs was below 1): a box moved during that step counts, a box
 // moved during the next one does not (but counts at the episode's end).
 TEST(BatchEpisodes, PrepStatisticsTakenAfterStepPrepPlusOne) {
   for (const int moved_in_step : {5, 6}) {
@@ -584,8 +585,7 @@ void check_env_against_reference(BatchSim& sim, int e, VisionCheck& out) {
 // whole random episodes of both games (random grabs and locks included), outside the grazing band.
 TEST(BatchVision, MatchesDoublePrecisionReferenceOutsideTheGrazingBand) {
   for (const bool full : {false, true}) {
-    BatchConfig config;
-    config.world = full ? physics::WorldConfig::full() : physics::WorldConfig::quadrant();
+    BatchConfig config = full ? full_scene() : quadrant_scene();
     config.num_envs = 8;
     config.seed = 9;
     BatchSim sim(config);
@@ -646,8 +646,7 @@ std::map<std::string, std::vector<uint8_t>> run(BatchConfig config, int steps, b
 }
 
 TEST(BatchDeterminism, SameSeedBitIdenticalForOneTwoAndFourThreads) {
-  BatchConfig config;
-  config.world = physics::WorldConfig::full();
+  BatchConfig config = full_scene();
   config.world.horizon = 30;  // several auto-resets within the run
   config.num_envs = 8;
   config.seed = 5;
@@ -670,8 +669,7 @@ TEST(BatchDeterminism, SameSeedBitIdenticalForOneTwoAndFourThreads) {
 // A slice of a run's envs (one process of a data-parallel run steps envs [first_env, first_env + n)) plays
 // exactly what those envs play in one batch of them all, across episode ends.
 TEST(BatchDeterminism, SliceOfTheEnvsPlaysWhatTheWholeBatchPlays) {
-  BatchConfig config;
-  config.world = physics::WorldConfig::full();
+  BatchConfig config = full_scene();
   config.world.horizon = 30;
   config.num_envs = 7;
   config.seed = 9;
@@ -709,8 +707,7 @@ TEST(BatchDeterminism, SliceOfTheEnvsPlaysWhatTheWholeBatchPlays) {
 // The per-kernel benchmarks recompute one phase from the SoA mirror; that must be exactly the step's work:
 // recomputing vision, lidar and observations after a step changes no byte of the state.
 TEST(BatchKernels, RecomputingAPhaseReproducesTheStep) {
-  BatchConfig config;
-  config.world = physics::WorldConfig::full();
+  BatchConfig config = full_scene();
   config.num_envs = 6;
   BatchSim sim(config);
   physics::Rng rng(9, 0, 0);

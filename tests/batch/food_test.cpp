@@ -1,6 +1,6 @@
-// The food variants of hide-and-seek (docs/game.md §5.4) on staged scenes, one test per eating rule: a hider eats
-// what it saw within reach; not out of reach, not what it did not see, never a seeker, not while a hider is
-// seen (unless eat_when_caught), not in the preparation phase; the last units are shared; an eaten-up item
+// The food variants of hide-and-seek (docs/game.md §5.4) on staged scenes, one test per eating rule: a hider
+// eats what it saw within reach; not out of reach, not what it did not see, never a seeker, not while a hider
+// is seen (unless eat_when_caught), not in the preparation phase; the last units are shared; an eaten-up item
 // comes back after respawn_steps (dynamic food: elsewhere in its square); selfish and joint_mean rewards; the
 // placement of the paper's five clustered items.
 #include <gtest/gtest.h>
@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 
 namespace hns::batch {
 namespace {
@@ -39,8 +39,7 @@ Scene food_scene(std::vector<Spawn> hiders, std::vector<Spawn> seekers, std::vec
 
 // The "food" preset without its preparation phase (unless asked), one env.
 BatchConfig food_config(double prep_fraction = 0.0, const char* scene = "food") {
-  BatchConfig c;
-  c.world = physics::world_preset(scene);
+  BatchConfig c = scene_config(scene);
   c.world.prep_fraction = prep_fraction;
   c.num_envs = 1;
   return c;
@@ -118,7 +117,7 @@ TEST(Food, NoHiderEatsWhileAHiderIsSeen) {
   EXPECT_FLOAT_EQ(t.s().reward[0], -1.0f);
 
   BatchConfig caught = food_config();
-  caught.world.food.eat_when_caught = true;
+  caught.rules.food.eat_when_caught = true;
   Staged u(caught, scene);
   u.step();
   EXPECT_FLOAT_EQ(u.s().food_eaten[0], 1.0f);
@@ -142,7 +141,7 @@ TEST(Food, NoEatingInThePreparationPhase) {
 // joint_mean every hider gets the hiders' mean (a third hider that ate nothing included).
 TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
   BatchConfig c = food_config();
-  c.world.food.max_health = 1.0;
+  c.rules.food.max_health = 1.0;
   const Scene scene =
       food_scene({agent_at(2.8, 3.25), agent_at(3.2, 3.25), agent_at(1.0, 1.0)}, {}, {food_at(3.0, 3.0)});
   Staged joint(c, scene);
@@ -155,7 +154,7 @@ TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
   EXPECT_EQ(joint.s().food_health[0], 0.0f);
   for (int a = 0; a < 3; ++a) EXPECT_FLOAT_EQ(joint.s().reward[a], 1.0f + 1.0f / 3.0f) << a;
 
-  c.world.food.joint_mean = false;
+  c.rules.food.joint_mean = false;
   Staged selfish(c, scene);
   selfish.step();
   EXPECT_FLOAT_EQ(selfish.s().reward[0], 1.5f);
@@ -167,7 +166,7 @@ TEST(Food, HidersShareTheLastUnitAndTheRewardFollowsTheMode) {
 // the hider standing at it eats again at step 7. The episode's statistic counts every unit.
 TEST(Food, AnEatenUpItemComesBackAfterRespawnSteps) {
   BatchConfig c = food_config();
-  c.world.food.max_health = 1.0;
+  c.rules.food.max_health = 1.0;
   Staged t(c, food_scene({agent_at(3.0, 3.3)}, {}, {food_at(3.0, 3.0)}));
   const float want[7] = {0, 0, 0, 0, 0, 1, 0};
   float eaten = 0;
@@ -205,7 +204,7 @@ TEST(Food, DynamicFoodMovesToANewSpotOfItsSquareWhenEaten) {
 // The paper's food game: five items close together in the centred square of 1/4 the side; the first in cells
 // 11 .. 16, the others within 2 cells of it.
 TEST(Food, FivePelletsSpawnTogetherInTheCentre) {
-  const physics::WorldConfig w = physics::world_preset("food");
+  const physics::WorldConfig w = scene_config("food").world;
   for (int seed = 0; seed < 200; ++seed) {
     physics::Rng rng(uint64_t(seed), 0, 0);
     Scene s;

@@ -219,7 +219,7 @@ BatchConfig one_on_one(int horizon) {
   c.world = physics::WorldConfig::empty();
   c.world.prep_fraction = 0.0;
   c.world.horizon = horizon;
-  c.world.penalize_objects_out = false;
+  c.rules.penalize_objects_out = false;
   c.world.scene.boxes = c.world.scene.ramps = {0, 1};
   c.world.scene.hiders = c.world.scene.seekers = {1, 1};
   c.num_envs = 1;

@@ -11,8 +11,8 @@
 #include <vector>
 
 #include "batch/batch_sim.hpp"
+#include "batch/scenes.hpp"
 #include "physics/geometry.hpp"
-#include "physics/presets.hpp"
 
 namespace hns::batch {
 namespace {
@@ -37,8 +37,7 @@ Scene lone_agent_scene(Spawn agent, std::vector<Spawn> boxes) {
 }
 
 BatchConfig task_config(const char* scene) {
-  BatchConfig c;
-  c.world = physics::world_preset(scene);
+  BatchConfig c = scene_config(scene);
   c.num_envs = 1;
   return c;
 }
@@ -258,7 +257,7 @@ TEST(EpisodeStatistics, MaxAgentMoveIsTheDistanceFromTheSpawn) {
 // Shelter's cylinder over the whole of the original's uniform_placement_middle(0.7) range: its centre reaches
 // beyond 3.9 m (the range is 1.4 to 4.25 m) and below 1.7 m, on both axes.
 TEST(Shelter, CylinderCentresSpanTheMiddleRange) {
-  const physics::WorldConfig w = physics::world_preset("shelter");
+  const physics::WorldConfig w = scene_config("shelter").world;
   double lo = 6, hi = 0;
   for (int seed = 0; seed < 400; ++seed) {
     physics::Rng rng(uint64_t(seed), 0, 0);
@@ -275,7 +274,7 @@ TEST(Shelter, CylinderCentresSpanTheMiddleRange) {
 
 TEST(TransferTasks, PresetsValidateAndPlace) {
   for (const char* name : {"lock-and-return", "sequential-lock", "shelter", "blueprint"}) {
-    physics::WorldConfig w = physics::world_preset(name);
+    physics::WorldConfig w = scene_config(name).world;
     EXPECT_NO_THROW(w.validate()) << name;
     EXPECT_NO_THROW(w.scene.check_placeable()) << name;
     const std::string n = name;
@@ -304,8 +303,8 @@ TEST(TransferTasks, PresetsValidateAndPlace) {
     EXPECT_LE(scene.target.sx, 2.0);
     EXPECT_EQ(scene.boxes.size(), 8u);
     EXPECT_EQ(scene.num_elongated, 3);
-    // uniform_placement_middle(0.7) of docs/game.md §2.5: a footprint of c = 8, 9 or 10 cells starts at a cell in
-    // [4, 17], [3, 16] or [3, 15]; the cylinder lies within its cells.
+    // uniform_placement_middle(0.7) of docs/game.md §2.5: a footprint of c = 8, 9 or 10 cells starts at a
+    // cell in [4, 17], [3, 16] or [3, 15]; the cylinder lies within its cells.
     const int c = int(std::ceil(scene.target.sx / physics::kCellSize - 1e-9));
     const int lo = c == 8 ? 4 : 3, hi = c == 8 ? 17 : c == 9 ? 16 : 15;
     EXPECT_GE(scene.target.x - 0.5 * scene.target.sx, lo * physics::kCellSize - 1e-9) << c;
@@ -402,7 +401,7 @@ TEST(Blueprint, BoxesPlacedOnTheSitesCompleteItAndTheRestOfTheEpisodeIsAbsorbed)
 // centres from 0.65 to 4.95 m), placed before anything movable so no box spawns on one; observed by the lone
 // agent as centre and corners, always visible, padding slots zero with mask 0.
 TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
-  const physics::WorldConfig w = physics::world_preset("blueprint");
+  const physics::WorldConfig w = scene_config("blueprint").world;
   double lo = 6, hi = 0;
   int counts[5] = {};
   for (int seed = 0; seed < 400; ++seed) {
@@ -455,8 +454,9 @@ TEST(Blueprint, SitesSpanTheMiddleRangeNothingSpawnsOnThemAndTheAgentSeesThem) {
       EXPECT_FLOAT_EQ(f[10], float(site.y) + 0.25f);
       EXPECT_EQ(st.mask_sites[slot + L.max_sites], 0) << "the spoofed agent slot sees nothing";
     }
-    EXPECT_EQ(st.obs_self[size_t(e) * L.max_agents * Layout::kSelfFeatures + 9], 0.0f);  // docs/game.md §9: hider 0
-    EXPECT_EQ(st.mask_ramps[size_t(e) * L.max_agents * L.max_ramps], 0);                 // spoofed ramp slot
+    EXPECT_EQ(st.obs_self[size_t(e) * L.max_agents * Layout::kSelfFeatures + 9],
+              0.0f);                                                      // docs/game.md §9: hider 0
+    EXPECT_EQ(st.mask_ramps[size_t(e) * L.max_agents * L.max_ramps], 0);  // spoofed ramp slot
   }
 }
 

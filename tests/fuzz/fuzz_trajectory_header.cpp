@@ -11,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 #include "physics/scene.hpp"
 #include "replay/trajectory.hpp"
 
@@ -52,7 +52,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     const hns::replay::TrajectoryFile f = hns::replay::decode_trajectory(bytes);
     for (const hns::replay::TrajectoryEpisode& e : f.episodes) {
-      if (hns::physics::find_scene(e.scene) == nullptr) __builtin_trap();
+      if (hns::batch::find_scene(e.scene) == nullptr) __builtin_trap();
       (void)hns::physics::parse_layout(e.layout);  // a ConfigError here escapes: a finding
     }
   } catch (const hns::replay::TrajectoryError&) {

@@ -1,10 +1,8 @@
-// Scene generation (docs/game.md §1.3, §2.3-§2.6, §14.5): layout names, the scene registry and presets,
+// Scene generation (docs/game.md §1.3, §2.3-§2.6, §14.5): layout names, the scene config presets,
 // determinism, spawn validity over many seeds, var_tri and the empty arena, rebuilds and failures. The
 // quadrant room, random rooms and wall geometry are in scene_rooms_test.cpp, config validation in
 // scene_config_test.cpp.
 #include "physics/scene.hpp"
-
-#include "physics/presets.hpp"
 
 #include <gtest/gtest.h>
 
@@ -36,39 +34,6 @@ TEST(SceneLayout, ParsesNamesAndRejectsUnknownOnes) {
     for (const char* needle : {"layout", "rooms", "empty", "quadrant", "randomwalls"}) {
       EXPECT_NE(what.find(needle), std::string::npos) << what << " lacks " << needle;
     }
-  }
-}
-
-// The registry is the one list of scenes: every row's name is unique and found by find_scene, its preset
-// validates and is what world_preset returns, and its family agrees with the preset's task (the transfer
-// family is what hns eval accepts, the probe what only hns counting runs).
-TEST(SceneRegistry, EveryRowIsAValidPresetOfItsFamily) {
-  std::set<std::string> names;
-  for (const SceneInfo& s : kScenes) {
-    SCOPED_TRACE(s.name);
-    EXPECT_TRUE(names.insert(s.name).second);
-    EXPECT_EQ(find_scene(s.name), &s);
-    EXPECT_GT(std::string(s.summary).size(), 10u);
-    const WorldConfig w = s.preset();
-    EXPECT_NO_THROW(w.validate());
-    EXPECT_EQ(world_preset(s.name).task, w.task);
-    EXPECT_EQ(world_preset(s.name).scene.layout, w.scene.layout);
-    const bool probe = w.task == WorldConfig::Task::kCounting;
-    EXPECT_EQ(s.family == SceneFamily::kProbe, probe);
-    EXPECT_EQ(s.family == SceneFamily::kTransfer, w.is_transfer_task() && !probe);
-    EXPECT_EQ(s.family == SceneFamily::kFood,
-              w.task == WorldConfig::Task::kHideAndSeek && w.scene.food.max > 0);
-  }
-  EXPECT_EQ(find_scene("moon"), nullptr);
-  EXPECT_EQ(find_scene(""), nullptr);
-  EXPECT_EQ(scene_names().size(), kScenes.size());
-  EXPECT_EQ(scene_list(", ", SceneFamily::kTransfer),
-            "lockbox, lock-and-return, sequential-lock, shelter, blueprint");
-  try {
-    (void)world_preset("moon");
-    ADD_FAILURE() << "world_preset(\"moon\") did not throw";
-  } catch (const ConfigError& e) {
-    EXPECT_NE(std::string(e.what()).find("must be one of quadrant, full,"), std::string::npos) << e.what();
   }
 }
 

@@ -11,16 +11,15 @@
 #include <vector>
 
 #include "batch/field_dims.hpp"
+#include "batch/scenes.hpp"
 #include "nn/obs_store.hpp"
-#include "physics/presets.hpp"
 #include "ppo/batch_obs.hpp"
 
 namespace hns::ppo {
 namespace {
 
-batch::Layout layout_of(const physics::SceneInfo& scene) {
-  batch::BatchConfig config;
-  config.world = physics::world_preset(scene.name);
+batch::Layout layout_of(const batch::SceneInfo& scene) {
+  batch::BatchConfig config = batch::scene_config(scene.name);
   config.num_envs = 2;
   return batch::Layout::of(config);
 }
@@ -34,7 +33,7 @@ int64_t product(const std::vector<int64_t>& dims) {
 // Every field's dimensions multiply to its count, in every scene; a layout size of 1 stays an axis and a
 // per-env scalar has none.
 TEST(BatchObs, FieldDimsMultiplyToEachFieldsCount) {
-  for (const physics::SceneInfo& scene : physics::kScenes) {
+  for (const batch::SceneInfo& scene : batch::kScenes) {
     const batch::Layout L = layout_of(scene);
     using batch::Layout;  // the counts name it
 #define HNS_CHECK_DIMS(type, field, count, doc) \
@@ -42,7 +41,7 @@ TEST(BatchObs, FieldDimsMultiplyToEachFieldsCount) {
     HNS_BATCH_FIELDS(HNS_CHECK_DIMS)
 #undef HNS_CHECK_DIMS
   }
-  const batch::Layout L = layout_of(physics::kScenes[0]);
+  const batch::Layout L = layout_of(batch::kScenes[0]);
   EXPECT_EQ(batch::field_dims("agent_pos", L), (std::vector<int64_t>{L.max_agents, 3}));
   EXPECT_EQ(batch::field_dims("obs_agents", L),
             (std::vector<int64_t>{L.max_agents, L.others, batch::Layout::kAgentFeatures}));
@@ -63,7 +62,7 @@ TEST(BatchObs, ObservationListIsTheBatchsObservationFields) {
 #undef HNS_OBS_NAME
   for (const nn::ObsField& f : nn::kObsFieldList) listed.insert(f.name);
   EXPECT_EQ(listed, batch_obs);
-  for (const physics::SceneInfo& scene : physics::kScenes) {
+  for (const batch::SceneInfo& scene : batch::kScenes) {
     const batch::Layout L = layout_of(scene);
     const nn::ObsShape shape = obs_shape(L);
     for (const nn::ObsField& f : nn::kObsFieldList) {
@@ -78,7 +77,7 @@ TEST(BatchObs, ObservationListIsTheBatchsObservationFields) {
 // The store's arrays have the list's sizes, its batch views them (null where empty), and floats_per_row is
 // their sum.
 TEST(BatchObs, StoreArraysAndViewsHaveTheListsShapes) {
-  const batch::Layout L = layout_of(physics::kScenes[0]);
+  const batch::Layout L = layout_of(batch::kScenes[0]);
   nn::ObsShape shape = obs_shape(L);
   shape.max_sites = 2, shape.site_features = 4;
   const size_t rows = 5;
@@ -108,8 +107,7 @@ TEST(BatchObs, StoreArraysAndViewsHaveTheListsShapes) {
 
 // A batch step copied raw is the batch's observations, masks widened to floats, field by field.
 TEST(BatchObs, CopiedStepIsTheBatchsObservations) {
-  batch::BatchConfig config;
-  config.world = physics::world_preset("quadrant");
+  batch::BatchConfig config = batch::scene_config("quadrant");
   config.num_envs = 3;
   batch::BatchSim sim(config);
   sim.reset();

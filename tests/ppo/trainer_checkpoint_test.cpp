@@ -135,8 +135,7 @@ TEST(Trainer, ExportedPolicyActsAsItsCheckpointAndOnlyStartsRuns) {
   // The same actions on the same observations, over whole episodes.
   const std::unique_ptr<Policy> from_ckpt = Policy::from_checkpoint(ckpt, 5);
   const std::unique_ptr<Policy> from_export = Policy::from_checkpoint(exported, 5);
-  batch::BatchConfig bc;
-  bc.world = cfg.world();
+  batch::BatchConfig bc = cfg.batch_config();
   bc.num_envs = 2;
   batch::BatchSim sim(bc);
   sim.reset();

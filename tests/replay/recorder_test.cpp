@@ -8,7 +8,7 @@
 #include <string>
 #include <vector>
 
-#include "physics/presets.hpp"
+#include "batch/scenes.hpp"
 
 namespace hns::replay {
 namespace {
@@ -19,7 +19,7 @@ RecordConfig config_for(const std::string& scene, int episodes, int envs, uint64
   RecordConfig c;
   c.scene = scene;
   c.episodes = episodes;
-  c.game.world = phys::world_preset(scene);
+  c.game = batch::scene_config(scene);
   c.game.num_envs = envs;
   c.game.seed = seed;
   c.game.threads = threads;
@@ -38,8 +38,7 @@ std::vector<TrajectoryEpisode> record(const RecordConfig& c) {
 
 TEST(Recorder, RecordingConfigKeepsThePreparationPhase) {
   for (const char* name : {"quadrant", "full", "empty"}) {
-    batch::BatchConfig game;
-    game.world = phys::world_preset(name);
+    const batch::BatchConfig game = batch::scene_config(name);
     const batch::BatchConfig rec = recording_batch_config(game);
     EXPECT_EQ(rec.world.horizon, game.world.horizon + 1) << name;
     EXPECT_EQ(rec.world.prep_steps(), game.world.prep_steps()) << name;

@@ -1,11 +1,12 @@
 // Blueprint construction (docs/game.md §9.1): a lone hider in the empty arena must push cubes onto 1-4
 // construction sites (0.5 m squares on the floor, always visible as the networks' fourth entity type). The
 // reward pulls the cubes' corners onto the sites' corners; completing the blueprint pays 3 per site and
-// absorbs the rest of the episode (task_complete, SingleAgentTask).
+// absorbs the rest of the episode (task_complete, SingleAgentTask). The scene's preset is at the end.
 #include <algorithm>
 #include <cmath>
 #include <limits>
 
+#include "batch/scenes.hpp"
 #include "batch/tasks/task.hpp"
 
 namespace hns::batch {
@@ -117,6 +118,17 @@ void observe_sites(EnvRef& ref) {
 
 class Blueprint final : public SingleAgentTask {
  public:
+  // Agent 0, construction sites and boxes to put on them; no counting layout, no food. (Not
+  // SingleAgentTask's checks: those refuse the sites.)
+  void validate(const physics::WorldConfig& world, const GameRules& /*rules*/) const override {
+    require_agent_zero(world);
+    physics::check_field(world.scene.sites.min >= 1, "sites.min", world.scene.sites.min,
+                         "must be >= 1 in the blueprint task (its construction sites)");
+    physics::check_field(world.scene.boxes.min >= 1, "boxes.min", world.scene.boxes.min,
+                         "must be >= 1 in the blueprint task (its building blocks)");
+    refuse_counting_layout(world);
+    refuse_food(world);
+  }
   int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
   // The episode's construction sites (the scene's), and their observation rows' source.
   void start_episode(EnvRef& ref, uint64_t /*episode*/) const override {
@@ -141,9 +153,13 @@ class Blueprint final : public SingleAgentTask {
 
 }  // namespace
 
-const Task& blueprint_task() {
+// docs/game.md §9.1: 8 cubes and 1-4 construction sites in the empty arena, horizon 150.
+BatchConfig blueprint_scene() {
   static const Blueprint task;
-  return task;
+  BatchConfig c = transfer_scene(task, 150);
+  c.world.scene.boxes = {8, 8};
+  c.world.scene.sites = {1, 4};
+  return c;
 }
 
 }  // namespace hns::batch

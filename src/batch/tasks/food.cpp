@@ -1,11 +1,13 @@
 // The food variants of the hide-and-seek game (docs/game.md §5.4, docs/food.md): food items the hiders eat
 // for reward while no hider is seen; "food" has 5 items close together that respawn, "dynamic-food" one item
-// that moves to a new spot when eaten. Settings: WorldConfig::food (physics/world.hpp); the items' placement
-// is the scene's.
+// that moves to a new spot when eaten. Settings: GameRules::food (batch/game.hpp); the items' placement is
+// the scene's. The two scenes' presets are at the end.
 #include "batch/tasks/food.hpp"
 
 #include <algorithm>
 #include <cmath>
+
+#include "batch/scenes.hpp"
 
 namespace hns::batch {
 
@@ -21,7 +23,7 @@ void food_start_episode(EnvRef& ref, uint64_t episode) {
     p[0] = f < nf ? float(scene.food[f].x) : 0.0f;
     p[1] = f < nf ? float(scene.food[f].y) : 0.0f;
     p[2] = f < nf ? float(scene.food[f].z) : 0.0f;
-    s.food_health[i] = f < nf ? float(ref.config.world.food.max_health) : 0.0f;
+    s.food_health[i] = f < nf ? float(ref.config.rules.food.max_health) : 0.0f;
     s.food_respawn[i] = 0;
     s.food_exists[i] = f < nf ? 1 : 0;
   }
@@ -39,7 +41,7 @@ void food_after_step(EnvRef& ref, float* reward, bool prep) {
   const int env = ref.index;
   const Layout& L = ref.L;
   BatchState& s = ref.s;
-  const physics::FoodConfig& fc = ref.config.world.food;
+  const FoodConfig& fc = ref.config.rules.food;
   const int n = ref.world.num_agents(), F = L.max_food;
   const size_t ea = size_t(env) * L.max_agents, ef = size_t(env) * F;
   const float* pos = s.agent_pos.data() + ea * 3;
@@ -128,9 +130,42 @@ void food_observe(EnvRef& ref) {
       mask_sites[a * C + f] = seen;
       value_mask_sites[a * C + f] = 1;
       eat_ok[a * F + f] =
-          hider[a] != 0 && seen != 0 && (eat_free || ref.config.world.food.eat_when_caught) ? 1 : 0;
+          hider[a] != 0 && seen != 0 && (eat_free || ref.config.rules.food.eat_when_caught) ? 1 : 0;
     }
   }
+}
+
+// The paper's food variants of the full game (docs/food.md): 5 items of 40 units close together in the
+// centred square (food_middle 0.25), respawning 5 steps after they are eaten up ("food"; FoodConfig's
+// defaults are the full game's values, docs/game.md §5.4).
+BatchConfig food_scene() {
+  BatchConfig c = full_scene();
+  c.world.scene.food = {5, 5};
+  c.world.scene.food_middle = 0.25;
+  c.world.scene.food_together_radius = 0.25;
+  return c;
+}
+
+// One item of 1 unit that moves to a new spot of the centred square (food_middle 0.2; both are cells 11 ..
+// 16) when eaten, with 3 hiders, 2 seekers and 8 elongated boxes in an arena without walls ("dynamic-food").
+BatchConfig dynamic_food_scene() {
+  BatchConfig c = full_scene();
+  physics::SceneConfig& s = c.world.scene;
+  s.layout = physics::Layout::kRandomWalls;
+  s.rooms = {1, 1};
+  s.prob_outside_walls = 0.0;  // no walls at all
+  s.hiders = {3, 3};
+  s.seekers = {2, 2};
+  s.boxes = {8, 8};
+  s.elongated = {8, 8};
+  s.ramps = {0, 0};
+  c.world.obs_min_ramps = 1;  // the hide-and-seek policy's ramp slot, empty
+  s.food = {1, 1};
+  s.food_middle = 0.2;
+  c.rules.food.max_health = 1.0;
+  c.rules.food.respawn_steps = 1;
+  c.rules.food.relocate = true;
+  return c;
 }
 
 }  // namespace hns::batch

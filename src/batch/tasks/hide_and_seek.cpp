@@ -1,10 +1,11 @@
 // The hide-and-seek game (docs/game.md §1-§7): hiders and seekers, a preparation phase in which the seekers
 // cannot move, then a joint zero-sum team reward (±1 per step) and a -10 penalty out of bounds. Its presets
-// are quadrant, full and empty; the food variants (food, dynamic-food) are this game with food items, whose
-// rules are in food.cpp. Per step it also keeps the seeking phase's statistics and measures what the
-// preparation phase left (episode_stats.cpp).
+// are quadrant, full and empty (at the end); the food variants (food, dynamic-food) are this game with food
+// items, whose rules and presets are in food.cpp. Per step it also keeps the seeking phase's statistics and
+// measures what the preparation phase left (episode_stats.cpp).
 #include <algorithm>
 
+#include "batch/scenes.hpp"
 #include "batch/tasks/food.hpp"
 #include "batch/tasks/task.hpp"
 
@@ -27,13 +28,14 @@ void HideAndSeek::reward_and_done(EnvRef& ref) const {
   const Layout& L = ref.L;
   BatchState& s = ref.s;
   const physics::WorldConfig& wc = ref.config.world;
+  const GameRules& rules = ref.config.rules;
   const physics::World& world = ref.world;
   const int t = world.step_count();
   const int n = world.num_agents();
   const float* pos = s.agent_pos.data() + size_t(env) * L.max_agents * 3;
   const uint8_t* hider = s.agent_hider.data() + size_t(env) * L.max_agents;
   const uint8_t* vis = s.vis_agents.data() + size_t(env) * L.max_agents * L.max_agents;
-  auto outside = [&wc](const float* p) { return out_of_bounds(wc, p); };
+  auto outside = [&rules](const float* p) { return out_of_bounds(rules, p); };
 
   // Joint zero-sum (docs/game.md §5.1): every hider gets -1 if any hider is seen by any seeker, else +1;
   // seekers the opposite. Out of bounds replaces an agent's reward with -10; in the quadrant game any box or
@@ -44,7 +46,7 @@ void HideAndSeek::reward_and_done(EnvRef& ref) const {
     for (int h = 0; h < n; ++h) any_seen = any_seen || (hider[h] != 0 && vis[sk * L.max_agents + h] != 0);
   }
   bool objects_out = false;
-  if (wc.penalize_objects_out) {
+  if (rules.penalize_objects_out) {
     for (int b = 0; b < world.num_boxes(); ++b)
       objects_out = objects_out || outside(s.box_pos.data() + ((size_t(env) * L.max_boxes + b) * 3));
     for (int r = 0; r < world.num_ramps(); ++r)
@@ -85,6 +87,30 @@ void HideAndSeek::reward_and_done(EnvRef& ref) const {
 const Task& hide_and_seek_task() {
   static const HideAndSeek task;
   return task;
+}
+
+// The quadrant game (docs/game.md §2.1): BatchConfig's defaults.
+BatchConfig quadrant_scene() {
+  BatchConfig c;
+  c.world = physics::WorldConfig::quadrant();
+  return c;
+}
+
+// The full game: random rooms, lockable ramps, horizon 240, an open arena whose bounds are 18 x 18 m around
+// its centre, objects outside them not penalised (docs/game.md §5.2).
+BatchConfig full_scene() {
+  BatchConfig c;
+  c.world = physics::WorldConfig::full();
+  const double open_arena[4] = {-6.0, -6.0, 12.0, 12.0};
+  std::copy(std::begin(open_arena), std::end(open_arena), std::begin(c.rules.restrict_rect));
+  c.rules.penalize_objects_out = false;
+  return c;
+}
+
+BatchConfig empty_scene() {
+  BatchConfig c;
+  c.world = physics::WorldConfig::empty();
+  return c;
 }
 
 }  // namespace hns::batch

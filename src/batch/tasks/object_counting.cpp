@@ -1,10 +1,11 @@
 // Object counting (the paper's §6; docs/transfer.md "Object counting"): a probe of a frozen policy's memory,
 // not a game to learn. The agent is pinned facing a gap between two screens, its actions are ignored, and
 // the cubes slide out of view to either side on a script (physics::counting_box_x); a head trained on the
-// policy's memory must tell how many went left. The reward is 0.
+// policy's memory must tell how many went left. The reward is 0. The scene's preset is at the end.
 #include <algorithm>
 #include <cmath>
 
+#include "batch/scenes.hpp"
 #include "batch/tasks/task.hpp"
 
 namespace hns::batch {
@@ -38,6 +39,16 @@ void pose_counting(EnvRef& ref) {
 
 class ObjectCounting final : public SingleAgentTask {
  public:
+  // Agent 0 and the counting layout, which the script poses; no construction sites, no food. (Not
+  // SingleAgentTask's checks: those refuse the counting layout.)
+  void validate(const physics::WorldConfig& world, const GameRules& /*rules*/) const override {
+    require_agent_zero(world);
+    refuse_sites(world);
+    physics::check_field(world.scene.layout == physics::Layout::kCounting, "scene.layout",
+                         int(world.scene.layout),
+                         "the counting layout goes with the object-counting task, and only with it");
+    refuse_food(world);
+  }
   int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
   bool scripted() const override { return true; }
   void start_episode(EnvRef& ref, uint64_t /*episode*/) const override { pose_counting(ref); }
@@ -50,9 +61,13 @@ class ObjectCounting final : public SingleAgentTask {
 
 }  // namespace
 
-const Task& object_counting_task() {
+// The paper's object counting (§6; docs/transfer.md): the fixed counting stage, 6 cubes, horizon 80.
+BatchConfig object_counting_scene() {
   static const ObjectCounting task;
-  return task;
+  BatchConfig c = transfer_scene(task, 80);
+  c.world.scene.layout = physics::Layout::kCounting;
+  c.world.scene.boxes = {6, 6};
+  return c;
 }
 
 }  // namespace hns::batch

@@ -1,10 +1,11 @@
 // Shelter construction (docs/game.md §9.3): a lone hider with 8 boxes (3 elongated) around a static cylinder
 // in the empty arena must shield the cylinder from 100 rays cast from the arena's edges; every ray that still
 // reaches it costs 0.001 per step. The cylinder is part of the scene (SceneConfig::target_diameter_*), and
-// vision and lidar see it like any wall.
+// vision and lidar see it like any wall. The scene's preset is at the end.
 #include <algorithm>
 #include <cmath>
 
+#include "batch/scenes.hpp"
 #include "batch/tasks/task.hpp"
 
 namespace hns::batch {
@@ -52,6 +53,12 @@ namespace {
 
 class Shelter final : public SingleAgentTask {
  public:
+  // The scene has the cylinder.
+  void validate(const physics::WorldConfig& world, const GameRules& rules) const override {
+    SingleAgentTask::validate(world, rules);
+    physics::check_field(world.scene.target_diameter_max > 0, "target_diameter_max",
+                         world.scene.target_diameter_max, "must be > 0 in the shelter task (its cylinder)");
+  }
   int hider_observation() const override { return 0; }  // a constant 0 (docs/game.md §9)
 
  protected:
@@ -63,9 +70,17 @@ class Shelter final : public SingleAgentTask {
 
 }  // namespace
 
-const Task& shelter_task() {
+// docs/game.md §9.3: 8 boxes (3 elongated) in the empty arena around a static cylinder of diameter U[1.5, 2]
+// m, horizon 240.
+BatchConfig shelter_scene() {
   static const Shelter task;
-  return task;
+  BatchConfig c = transfer_scene(task, 240);
+  physics::SceneConfig& s = c.world.scene;
+  s.boxes = {8, 8};
+  s.elongated = {3, 3};
+  s.target_diameter_min = 1.5;
+  s.target_diameter_max = 2.0;
+  return c;
 }
 
 }  // namespace hns::batch

@@ -1,5 +1,8 @@
-// The registry of scenes (every named world preset, with its description and family) and per-run count
-// overrides, shared by the CLI, Python, the benchmarks and the docs test.
+// The registry of scenes: every named game a batch can play (its world and its rules), with its description
+// and family, and per-run count overrides; shared by the CLI, Python, the benchmarks and the docs test.
+//
+// A scene is one row of kScenes below, whose preset function is defined in its game's file in tasks/
+// (tasks/task.hpp says how to add a game).
 #pragma once
 
 #include <array>
@@ -8,9 +11,9 @@
 #include <string_view>
 #include <vector>
 
-#include "physics/world.hpp"
+#include "batch/batch_sim.hpp"
 
-namespace hns::physics {
+namespace hns::batch {
 
 // What a scene is for; decides which commands take it (hns eval --tasks takes kTransfer, hns counting
 // kProbe).
@@ -26,30 +29,43 @@ struct SceneInfo {
   const char* name;     // what --scene, hns.BatchEnv(scene=...) and trajectory headers say
   const char* summary;  // one line, for --help and the docs
   SceneFamily family;
-  WorldConfig (*preset)();
+  // The scene's world and rules; the batch's own fields (envs, threads, seed) keep their defaults.
+  BatchConfig (*preset)();
 };
+
+// The presets, each defined in its game's file (tasks/).
+BatchConfig quadrant_scene();         // hide_and_seek.cpp
+BatchConfig full_scene();             // hide_and_seek.cpp
+BatchConfig empty_scene();            // hide_and_seek.cpp
+BatchConfig lockbox_scene();          // lock_tasks.cpp
+BatchConfig lock_and_return_scene();  // lock_tasks.cpp
+BatchConfig sequential_lock_scene();  // lock_tasks.cpp
+BatchConfig shelter_scene();          // shelter.cpp
+BatchConfig blueprint_scene();        // blueprint.cpp
+BatchConfig object_counting_scene();  // object_counting.cpp
+BatchConfig food_scene();             // food.cpp
+BatchConfig dynamic_food_scene();     // food.cpp
 
 // Every scene, in the order the CLI and the docs list them. A scene exists exactly when it has a row here.
 inline constexpr std::array<SceneInfo, 11> kScenes = {{
     {"quadrant", "a corner room with doors (the paper's quadrant game)", SceneFamily::kHideAndSeek,
-     &WorldConfig::quadrant},
-    {"full", "random rooms (the paper's full game)", SceneFamily::kHideAndSeek, &WorldConfig::full},
+     &quadrant_scene},
+    {"full", "random rooms (the paper's full game)", SceneFamily::kHideAndSeek, &full_scene},
     {"empty", "the arena without inner walls (short episodes: benches and tests)", SceneFamily::kHideAndSeek,
-     &WorldConfig::empty},
-    {"lockbox", "one agent must reach and lock a cube", SceneFamily::kTransfer, &WorldConfig::lockbox},
+     &empty_scene},
+    {"lockbox", "one agent must reach and lock a cube", SceneFamily::kTransfer, &lockbox_scene},
     {"lock-and-return", "lock the cube in one of 6 rooms, then return to the spawn point",
-     SceneFamily::kTransfer, &WorldConfig::lock_and_return},
+     SceneFamily::kTransfer, &lock_and_return_scene},
     {"sequential-lock", "lock 4 cubes in index order in 3 door-less rooms", SceneFamily::kTransfer,
-     &WorldConfig::sequential_lock},
+     &sequential_lock_scene},
     {"shelter", "hide a cylinder from rays with 8 boxes (build a shelter)", SceneFamily::kTransfer,
-     &WorldConfig::shelter},
-    {"blueprint", "place cubes on 1-4 construction sites", SceneFamily::kTransfer, &WorldConfig::blueprint},
+     &shelter_scene},
+    {"blueprint", "place cubes on 1-4 construction sites", SceneFamily::kTransfer, &blueprint_scene},
     {"object-counting", "a frozen policy watches 6 cubes slide out of view (no reward; hns counting)",
-     SceneFamily::kProbe, &WorldConfig::object_counting},
-    {"food", "the full game with 5 food items in the middle that respawn", SceneFamily::kFood,
-     &WorldConfig::food_game},
+     SceneFamily::kProbe, &object_counting_scene},
+    {"food", "the full game with 5 food items in the middle that respawn", SceneFamily::kFood, &food_scene},
     {"dynamic-food", "3 hiders, 2 seekers, 8 elongated boxes, one food item that moves when eaten",
-     SceneFamily::kFood, &WorldConfig::dynamic_food_game},
+     SceneFamily::kFood, &dynamic_food_scene},
 }};
 
 // The scene called `name`, or nullptr.
@@ -59,9 +75,9 @@ std::vector<std::string> scene_names(std::optional<SceneFamily> family = std::nu
 // Those names joined by `separator`.
 std::string scene_list(const std::string& separator, std::optional<SceneFamily> family = std::nullopt);
 
-// The preset of scene `name` (kScenes; docs/transfer.md, docs/food.md). Throws ConfigError naming the
-// allowed names.
-WorldConfig world_preset(const std::string& name);
+// The batch config of scene `name`: its preset (docs/transfer.md, docs/food.md). Throws
+// physics::ConfigError naming the allowed names.
+BatchConfig scene_config(const std::string& name);
 
 // Fixed counts that replace what the scene would draw per episode (unset = keep the preset's range).
 struct CountOverrides {
@@ -69,6 +85,6 @@ struct CountOverrides {
 };
 
 // Applies the overrides; with a fixed box count the elongated range is clamped into it.
-void apply_overrides(WorldConfig& config, const CountOverrides& counts);
+void apply_overrides(physics::WorldConfig& config, const CountOverrides& counts);
 
-}  // namespace hns::physics
+}  // namespace hns::batch
