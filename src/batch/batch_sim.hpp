@@ -11,6 +11,7 @@
 
 #include <tbb/task_arena.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <memory>
@@ -40,6 +41,8 @@ struct BatchConfig {
   // Index of this batch's first env in a larger run (a slice of it stepped by one process): env e plays
   // exactly what env first_env + e of one batch of all the envs would.
   int64_t first_env = 0;
+  // Agent slots per env: the world's max_agents(), at least rules.obs_min_agents (Layout's max_agents).
+  int agent_slots() const { return std::max(world.max_agents(), rules.obs_min_agents); }
   int envs_per_task = 4;  // fixed work partition, independent of the thread count
   // Throws physics::ConfigError naming the first bad field: the world's, then the rules', then the batch's.
   void validate() const;

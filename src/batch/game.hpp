@@ -38,6 +38,10 @@ struct GameRules {
   bool penalize_objects_out = true;
   // The food variants (the scene's food items; without any, nothing here applies).
   FoodConfig food;
+  // Observation slots at least this many (0 = the world's maxima): a transfer task's lone agent sees a
+  // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (docs/game.md §9 spoofed obs).
+  int obs_min_agents = 0;
+  int obs_min_ramps = 0;
   // Throws physics::ConfigError naming the first bad field: the game's requirements on the world
   // (Task::validate), then the food settings and the rectangle.
   void validate(const physics::WorldConfig& world) const;

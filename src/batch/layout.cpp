@@ -51,9 +51,9 @@ void BatchState::allocate(const Layout& L, int num_envs) {
 Layout Layout::of(const BatchConfig& config) {
   const physics::SceneConfig& scene = config.world.scene;
   Layout L;
-  L.max_agents = config.world.agent_slots();
+  L.max_agents = config.agent_slots();
   L.max_boxes = scene.boxes.max;
-  L.max_ramps = std::max(scene.ramps.max, config.world.obs_min_ramps);
+  L.max_ramps = std::max(scene.ramps.max, config.rules.obs_min_ramps);
   L.construction_sites = scene.sites.max;
   L.max_food = scene.food.max;  // SceneConfig::validate() allows sites or food, not both
   L.max_sites = std::max(L.construction_sites, L.max_food);

@@ -59,10 +59,6 @@ struct WorldConfig {
   // Locks of boxes after the first unlocked one (in index order) are refused (the sequential-lock task,
   // docs/game.md §9.2).
   bool lock_in_order = false;
-  // Observation slots at least this many (0 = the scene's maxima): a transfer task's lone agent sees a
-  // hide-and-seek policy's entity types, the missing ones as slots with mask 0 (docs/game.md §9 spoofed obs).
-  int obs_min_agents = 0;
-  int obs_min_ramps = 0;
 
   // The worlds of the hide-and-seek game's scenes (docs/game.md §2.1), for what steps worlds without a batch
   // (the physics tests and benchmarks, the MuJoCo parity tool) and as the scenes' starting points; the
@@ -75,8 +71,6 @@ struct WorldConfig {
   void validate() const;
   int prep_steps() const;
   int max_agents() const { return scene.hiders.max + scene.seekers.max; }
-  // Agent slots of a batch of this world: max_agents(), at least obs_min_agents (batch::Layout's A).
-  int agent_slots() const { return std::max(max_agents(), obs_min_agents); }
 };
 
 // Throws ConfigError "field = value is invalid: allowed" unless `ok`, the value in the shortest form that

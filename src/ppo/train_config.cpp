@@ -557,8 +557,9 @@ batch::BatchConfig TrainConfig::batch_config() const {
   batch::apply_overrides(w, batch::CountOverrides{count(hiders), count(seekers), count(boxes), count(ramps)});
   // Keep the entity types of the scene in the observation: a lone agent still has an (empty) other-agent
   // slot and a scene without ramps an (empty) ramp slot, as the transfer tasks spoof them (docs/game.md §9).
-  if (had_others) w.obs_min_agents = std::max(w.obs_min_agents, 2);
-  if (had_ramps) w.obs_min_ramps = std::max(w.obs_min_ramps, 1);
+  batch::GameRules& r = game.rules;
+  if (had_others) r.obs_min_agents = std::max(r.obs_min_agents, 2);
+  if (had_ramps) r.obs_min_ramps = std::max(r.obs_min_ramps, 1);
   if (spawn_quarter == 1) w.scene.spawn_quarter = true;
   return game;
 }
@@ -676,11 +677,11 @@ void TrainConfig::validate() const {
         "must divide the rollout length (horizon x episodes_per_iteration)");
   // The rollout buffer holds every agent slot of every env for every step of an iteration (several KiB of
   // observations per row); the cap keeps its row indices in 32 bits and its size within a server's memory.
-  const int64_t rows = int64_t(rollout_steps()) * envs * w.agent_slots();
+  const int64_t rows = int64_t(rollout_steps()) * envs * game.agent_slots();
   if (rows > kMaxRolloutRows) {
     throw ConfigError("envs " + std::to_string(envs) + " x rollout steps " + std::to_string(rollout_steps()) +
-                      " (horizon x episodes_per_iteration) x agent slots " + std::to_string(w.agent_slots()) +
-                      " = " + std::to_string(rows) +
+                      " (horizon x episodes_per_iteration) x agent slots " +
+                      std::to_string(game.agent_slots()) + " = " + std::to_string(rows) +
                       " agent-step rows in the rollout buffer: must be at most " +
                       std::to_string(kMaxRolloutRows) + "; lower envs, episodes_per_iteration or horizon");
   }

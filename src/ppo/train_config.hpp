@@ -112,7 +112,9 @@ struct TrainConfig {
   int rollout_steps() const { return world().horizon * episodes_per_iteration; }
   // BPTT chunks in the rollout buffer (every agent slot's; padding agents' chunks are left out of the
   // update).
-  int64_t buffer_chunks() const { return int64_t(envs) * world().agent_slots() * (rollout_steps() / bptt); }
+  int64_t buffer_chunks() const {
+    return int64_t(envs) * batch_config().agent_slots() * (rollout_steps() / bptt);
+  }
   // Blocks of envs of the update (gradient groups; the unit a process of a data-parallel run owns):
   // min(grad_groups, envs), and no more than lets each block's share of a minibatch fill a training chunk of
   // nn::ParallelConfig::train_chunk_sequences sequences (smaller chunks run the network less efficiently).

@@ -92,6 +92,10 @@ TEST(GameRules, EachGameRefusesTheWorldsItCannotPlay) {
       {"lockbox", [](BatchConfig& c) { c.world.lock_in_order = true; },
        "lock_in_order = 1 is invalid: must be 0 in the lockbox and lock-and-return tasks (any box may be "
        "locked)"},
+      {"lockbox", [](BatchConfig& c) { c.rules.obs_min_agents = 33; },
+       "obs_min_agents = 33 is invalid: must be in [0, 32]"},
+      {"quadrant", [](BatchConfig& c) { c.rules.obs_min_ramps = -1; },
+       "obs_min_ramps = -1 is invalid: must be in [0, 16]"},
       {"food", [](BatchConfig& c) { c.rules.food.eat_radius = 0; },
        "food.eat_radius = 0 is invalid: must be in (0, 10] m"},
       {"food", [](BatchConfig& c) { c.rules.food.max_health = 1000001; },

@@ -409,10 +409,11 @@ TEST(TrainConfig, CountKeysFixTheTeamsAndKeepTheEntityTypes) {
   c.set("ramps", "0");
   c.set("boxes", "3");
   c.validate();
-  const physics::WorldConfig w = c.world();
+  const batch::BatchConfig game = c.batch_config();
+  const physics::WorldConfig& w = game.world;
   EXPECT_EQ(w.max_agents(), 1);
-  EXPECT_EQ(w.agent_slots(), 2);
-  EXPECT_EQ(w.obs_min_ramps, 1);
+  EXPECT_EQ(game.agent_slots(), 2);
+  EXPECT_EQ(game.rules.obs_min_ramps, 1);
   EXPECT_EQ(w.scene.boxes.min, 3);
   EXPECT_EQ(w.scene.boxes.max, 3);
   EXPECT_EQ(w.scene.ramps.max, 0);

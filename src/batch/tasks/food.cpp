@@ -159,7 +159,7 @@ BatchConfig dynamic_food_scene() {
   s.boxes = {8, 8};
   s.elongated = {8, 8};
   s.ramps = {0, 0};
-  c.world.obs_min_ramps = 1;  // the hide-and-seek policy's ramp slot, empty
+  c.rules.obs_min_ramps = 1;  // the hide-and-seek policy's ramp slot, empty
   s.food = {1, 1};
   s.food_middle = 0.2;
   c.rules.food.max_health = 1.0;

@@ -22,6 +22,10 @@ void GameRules::validate(const physics::WorldConfig& world) const {
               food.respawn_steps, "must be in [0, 1000000] (0: never)");
   check_field(std::isfinite(food.reward_scale) && std::abs(food.reward_scale) <= 1e3, "food.reward_scale",
               food.reward_scale, "must be in [-1000, 1000]");
+  check_field(obs_min_agents >= 0 && obs_min_agents <= 32, "obs_min_agents", obs_min_agents,
+              "must be in [0, 32]");
+  check_field(obs_min_ramps >= 0 && obs_min_ramps <= 16, "obs_min_ramps", obs_min_ramps,
+              "must be in [0, 16]");
   check_field(restrict_rect[0] < restrict_rect[2], "restrict_rect x_min", restrict_rect[0],
               "must be < x_max");
   check_field(restrict_rect[1] < restrict_rect[3], "restrict_rect y_min", restrict_rect[1],
@@ -78,8 +82,8 @@ BatchConfig lone_hider_scene(const Task& task, int horizon) {
 
 BatchConfig transfer_scene(const Task& task, int horizon) {
   BatchConfig c = lone_hider_scene(task, horizon);
-  c.world.obs_min_agents = 2;
-  c.world.obs_min_ramps = 1;
+  c.rules.obs_min_agents = 2;
+  c.rules.obs_min_ramps = 1;
   return c;
 }
 
