@@ -4,6 +4,7 @@
 #include "nn/adam.hpp"
 #include "nn/bf16_gemm.hpp"
 #include "nn/kernels.hpp"
+#include "nn/obs_store.hpp"
 
 #include "test_util.hpp"
 
@@ -26,23 +27,22 @@ NetConfig tiny_config() {
   return testing::tiny_net_config();
 }
 
-// Random observations for `rows` agent-steps; present masks have padding slots, seen masks are subsets.
-struct ObsData {
-  std::vector<float> self, lidar, agents, boxes, ramps, sites;
-  std::vector<float> agents_seen, boxes_seen, ramps_seen, sites_seen;
-  std::vector<float> agents_present, boxes_present, ramps_present, sites_present, reset;
-  ObsData(const ObsShape& s, int rows, uint64_t seed, double p_reset = 0.15) {
+// Random observations for `rows` agent-steps in the observation store the trainer uses (nn::ObsStore);
+// present masks have padding slots, seen masks are subsets. Copyable, so that a test can change a copy.
+struct ObsData : ObsStore {
+  ObsData(const ObsShape& s, int rows, uint64_t seed, double p_reset = 0.15) : ObsStore(s, size_t(rows)) {
     const int na = s.num_other_agents();
-    self = random_vector(static_cast<size_t>(rows) * s.self_features, seed + 1, -2.0f, 2.0f);
-    lidar = random_vector(static_cast<size_t>(rows) * s.lidar_rays, seed + 2, 0.0f, 6.0f);
-    agents = random_vector(static_cast<size_t>(rows) * na * s.agent_features, seed + 3, -2.0f, 2.0f);
-    boxes = random_vector(static_cast<size_t>(rows) * s.max_boxes * s.box_features, seed + 4, -2.0f, 2.0f);
-    ramps = random_vector(static_cast<size_t>(rows) * s.max_ramps * s.ramp_features, seed + 5, -2.0f, 2.0f);
-    sites = random_vector(static_cast<size_t>(rows) * s.max_sites * s.site_features, seed + 10, -2.0f, 2.0f);
-    agents_present.assign(static_cast<size_t>(rows) * na, 1.0f);
-    boxes_present.assign(static_cast<size_t>(rows) * s.max_boxes, 1.0f);
-    ramps_present.assign(static_cast<size_t>(rows) * s.max_ramps, 1.0f);
-    sites_present.assign(static_cast<size_t>(rows) * s.max_sites, 1.0f);
+    fill(self, random_vector(static_cast<size_t>(rows) * s.self_features, seed + 1, -2.0f, 2.0f));
+    fill(lidar, random_vector(static_cast<size_t>(rows) * s.lidar_rays, seed + 2, 0.0f, 6.0f));
+    fill(agents, random_vector(static_cast<size_t>(rows) * na * s.agent_features, seed + 3, -2.0f, 2.0f));
+    fill(boxes,
+         random_vector(static_cast<size_t>(rows) * s.max_boxes * s.box_features, seed + 4, -2.0f, 2.0f));
+    fill(ramps,
+         random_vector(static_cast<size_t>(rows) * s.max_ramps * s.ramp_features, seed + 5, -2.0f, 2.0f));
+    fill(sites,
+         random_vector(static_cast<size_t>(rows) * s.max_sites * s.site_features, seed + 10, -2.0f, 2.0f));
+    for (FloatBuffer* present : {&agents_present, &boxes_present, &ramps_present, &sites_present})
+      std::fill_n(present->data(), present->size(), 1.0f);
     for (int r = 0; r < rows; ++r) {
       if (r % 3 == 0 && na > 0) agents_present[static_cast<size_t>(r) * na + na - 1] = 0.0f;
       if (r % 2 == 0 && s.max_boxes > 0)
@@ -50,33 +50,27 @@ struct ObsData {
       if (r % 4 == 1 && s.max_sites > 0)
         sites_present[static_cast<size_t>(r) * s.max_sites + s.max_sites - 1] = 0.0f;
     }
-    agents_seen = random_mask(agents_present.size(), seed + 6, 0.6);
-    boxes_seen = random_mask(boxes_present.size(), seed + 7, 0.6);
-    ramps_seen = random_mask(ramps_present.size(), seed + 8, 0.6);
+    fill(agents_seen, random_mask(agents_present.size(), seed + 6, 0.6));
+    fill(boxes_seen, random_mask(boxes_present.size(), seed + 7, 0.6));
+    fill(ramps_seen, random_mask(ramps_present.size(), seed + 8, 0.6));
     for (size_t i = 0; i < agents_seen.size(); ++i) agents_seen[i] *= agents_present[i];
     for (size_t i = 0; i < boxes_seen.size(); ++i) boxes_seen[i] *= boxes_present[i];
-    sites_seen = random_mask(sites_present.size(), seed + 11, 0.7);
+    fill(sites_seen, random_mask(sites_present.size(), seed + 11, 0.7));
     for (size_t i = 0; i < sites_seen.size(); ++i) sites_seen[i] *= sites_present[i];
-    reset = random_mask(rows, seed + 9, p_reset);
+    fill(reset, random_mask(rows, seed + 9, p_reset));
   }
-  ObsBatch batch() const {
-    ObsBatch b;
-    b.self = self.data();
-    b.lidar = lidar.data();
-    b.agents = agents.data();
-    b.boxes = boxes.data();
-    b.ramps = ramps.data();
-    b.sites = sites.data();
-    b.agents_seen = agents_seen.data();
-    b.boxes_seen = boxes_seen.data();
-    b.ramps_seen = ramps_seen.data();
-    b.sites_seen = sites_seen.data();
-    b.agents_present = agents_present.data();
-    b.boxes_present = boxes_present.data();
-    b.ramps_present = ramps_present.data();
-    b.sites_present = sites_present.data();
-    b.reset = reset.data();
-    return b;
+  ObsData(const ObsData& o) : ObsStore(o.shape(), o.rows()) {
+#define HNS_OBS_DATA_COPY(name, member, type, axis, key) copy(o.member, member);
+    HNS_OBS_FIELDS(HNS_OBS_DATA_COPY)
+#undef HNS_OBS_DATA_COPY
+    copy(o.reset, reset);
+  }
+  static void fill(FloatBuffer& dst, const std::vector<float>& src) {
+    ASSERT_EQ(dst.size(), src.size());
+    std::copy(src.begin(), src.end(), dst.data());
+  }
+  static void copy(const FloatBuffer& src, FloatBuffer& dst) {
+    std::copy_n(src.data(), src.size(), dst.data());
   }
 };
 
@@ -316,7 +310,7 @@ TEST_P(NnNetworkPrecision, MaskedEntitiesChangeNothing) {
   EXPECT_TRUE(same_bits(base.grads.data(), r2.grads.data(), base.grads.size()));
   // The value net ignores visibility; the policy does not.
   ObsData blind = data;
-  std::fill(blind.agents_seen.begin(), blind.agents_seen.end(), 0.0f);
+  std::fill_n(blind.agents_seen.data(), blind.agents_seen.size(), 0.0f);
   const Result r3 = run(blind);
   EXPECT_TRUE(same_bits(base.value.data(), r3.value.data(), base.value.size()));
   EXPECT_FALSE(same_bits(base.logits.data(), r3.logits.data(), base.logits.size()));
@@ -398,8 +392,7 @@ TEST(NnNetwork, IndexedNormalisedRowsEqualContiguousRawRows) {
   std::vector<int32_t> index(rows);
   for (int r = 0; r < rows; ++r) index[r] = (r * 7 + 4) % rollout_rows;
   ObsData rollout(s, rollout_rows, 401);
-  auto place = [&](const std::vector<float>& src, std::vector<float>& dst, int per_row, int features,
-                   int key) {
+  auto place = [&](const FloatBuffer& src, FloatBuffer& dst, int per_row, int features, int key) {
     for (int r = 0; r < rows; ++r) {
       const float* from = src.data() + static_cast<size_t>(r) * per_row;
       float* to = dst.data() + static_cast<size_t>(index[r]) * per_row;
@@ -619,7 +612,7 @@ TEST_P(NnNetworkPrecision, ChunkOfTenStepsEqualsTenActSteps) {
   double worst = 0.0;
   for (int t = 0; t < steps; ++t) {
     ObsData step(cfg.obs, agents, 0);
-    auto gather = [&](const std::vector<float>& src, std::vector<float>& dst, size_t per_row) {
+    auto gather = [&](const FloatBuffer& src, FloatBuffer& dst, size_t per_row) {
       if (per_row == 0) return;  // an entity type this shape lacks: empty arrays
       for (int a = 0; a < agents; ++a)
         std::memcpy(dst.data() + a * per_row, src.data() + (a * steps + t) * per_row,
