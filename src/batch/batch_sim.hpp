@@ -53,8 +53,9 @@ struct BatchConfig {
 
 // Slots of the stat_prep field: what the episode statistics read from the mirror when the preparation phase
 // ends (and again when the episode ends): docs/game.md §7's max box move (m), boxes locked, max ramp move
-// (m), ramps locked, then the doors sealed by locked boxes and whether a ramp is in the quadrant room (1 or
-// 0).
+// (m), ramps locked, then the doors sealed by locked boxes, whether a ramp is in the quadrant room (1 or
+// 0), the doors covered by boxes, the fraction of the hiders in the quadrant room and the fraction of the
+// hiders beside a locked box (hider_screened).
 enum PrepStat {
   kBoxMove,
   kBoxLock,
@@ -64,6 +65,7 @@ enum PrepStat {
   kRampInRoom,
   kDoorsBlocked,
   kHidersInRoom,
+  kHidersScreened,
   kNumPrepStats
 };
 // Slots of the stat_run field: the seeking phase's running statistics. The closest a ramp came to an
@@ -192,7 +194,7 @@ struct Layout {
   X(float, box_pos_start, L.max_boxes * 3, "box centre at reset, m (envs x B x 3)")                         \
   X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
-  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 8)")             \
+  X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 9)")             \
   X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
   /* Box-locking tasks (tasks/lock_tasks.cpp, docs/game.md §9.2). */                                       \
@@ -258,6 +260,7 @@ struct BatchState {
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
   X(num_door_blocked_prep, "doors covered by boxes, locked or not, at the end of the preparation phase")    \
   X(hiders_in_room_prep, "fraction of the hiders inside the quadrant room at the end of prep")              \
+  X(hiders_screened_prep, "fraction of the hiders beside a locked box at the end of prep (hider_screened)") \
   X(box_surf, "1 if a seeker rode a sliding box for kSurfSteps steps or more (box surfing)")                \
   X(max_agent_move, "m, largest agent displacement from its spawn at the end of the episode")               \
   X(food_eaten, "food units the hiders ate in the episode (the food variants)")

@@ -75,18 +75,22 @@ void measure_stats(const EnvRef& ref, float out[kNumPrepStats]) {
     }
   }
   out[kRampInRoom] = in_room ? 1.0f : 0.0f;
-  // The hiders inside the quadrant room (their centres), as a fraction of the hiders.
-  int hiders = 0, inside = 0;
-  if (scene.layout == physics::Layout::kQuadrant) {
-    const Rect room = quadrant_room();
-    const size_t ea = size_t(env) * L.max_agents;
-    for (int a = 0; a < ref.world.num_agents(); ++a) {
-      if (s.agent_hider[ea + a] == 0) continue;
-      ++hiders;
-      inside += room.contains(s.agent_pos[3 * (ea + a)], s.agent_pos[3 * (ea + a) + 1]) ? 1 : 0;
-    }
+  // The hiders inside the quadrant room (their centres) and the hiders beside a locked box, as fractions of
+  // the hiders.
+  const bool quadrant = scene.layout == physics::Layout::kQuadrant;
+  const Rect room = quadrant_room();
+  const std::span<const Footprint> locked_boxes(locked, size_t(num_locked));
+  int hiders = 0, inside = 0, screened = 0;
+  const size_t ea = size_t(env) * L.max_agents;
+  for (int a = 0; a < ref.world.num_agents(); ++a) {
+    if (s.agent_hider[ea + a] == 0) continue;
+    const float x = s.agent_pos[3 * (ea + a)], y = s.agent_pos[3 * (ea + a) + 1];
+    ++hiders;
+    inside += quadrant && room.contains(x, y) ? 1 : 0;
+    screened += hider_screened(locked_boxes, x, y) ? 1 : 0;
   }
   out[kHidersInRoom] = hiders > 0 ? float(inside) / float(hiders) : 0.0f;
+  out[kHidersScreened] = hiders > 0 ? float(screened) / float(hiders) : 0.0f;
 }
 
 // The seeking phase's running statistics (stat_run), from this step's mirror and vision.
@@ -181,6 +185,7 @@ void record_episode(const EnvRef& ref, bool discarded, EpisodeStats& st) {
   st.ramp_in_room_prep = prep[kRampInRoom];
   st.num_door_blocked_prep = prep[kDoorsBlocked];
   st.hiders_in_room_prep = prep[kHidersInRoom];
+  st.hiders_screened_prep = prep[kHidersScreened];
   st.box_surf = run[kSurfCount] >= float(kSurfSteps) ? 1.0f : 0.0f;
   st.food_eaten = run[kFoodEaten];
   st.max_agent_move = 0.0f;

@@ -120,6 +120,14 @@ bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes) {
   return false;
 }
 
+bool hider_screened(std::span<const Footprint> boxes, float x, float y) {
+  const float reach = float(kAgentRadius) + kScreenGap;  // from the hider's centre
+  for (const Footprint& f : boxes) {
+    if (point_distance(f, x, y) < reach) return true;
+  }
+  return false;
+}
+
 Rect quadrant_room() {
   // Room walls on grid row and column kQuadrantSize (docs/game.md §2.3), outer walls on 0 and 29; the
   // interior runs from one wall box's face to the other's.

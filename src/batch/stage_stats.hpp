@@ -46,6 +46,14 @@ DoorGap door_gap(const physics::Scene& scene, const physics::DoorCells& door);
 // ones.
 bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes);
 
+// Whether a hider at (x, y) stands beside one of the boxes (the caller passes the locked ones): less than an
+// agent's diameter (2 x kAgentRadius) between its body and a box's footprint, so no seeker fits between
+// them; the box screens the hider from that side. The shelter of locked boxes that hiders build in a corner
+// of the quadrant room, instead of sealing its doors, shows as hiders beside locked boxes at the end of the
+// preparation phase.
+inline constexpr float kScreenGap = float(2.0 * physics::kAgentRadius);
+bool hider_screened(std::span<const Footprint> boxes, float x, float y);
+
 // Axis-aligned rectangle, m.
 struct Rect {
   float x0 = 0, y0 = 0, x1 = 0, y1 = 0;

@@ -43,6 +43,25 @@ TEST(StageGeometry, StandsOnTheTopOfABoxOnly) {
   EXPECT_FALSE(stands_on(box, 0.5f, 2.4f, 1.9f, 0.65f)) << "beside its footprint";
 }
 
+// A hider is screened by a box when less than an agent's diameter (0.3 m) is left between its body (radius
+// 0.15 m) and the box's footprint, measured from any side, corners included.
+TEST(StageGeometry, AHiderBesideABoxIsScreenedAnAgentsWidthAwayIsNot) {
+  const Footprint box[] = {square(2, 2, 0.25f)};
+  const float touching = 2.0f + 0.25f + 0.15f;
+  EXPECT_FALSE(hider_screened({}, touching, 2.0f)) << "no locked box";
+  EXPECT_TRUE(hider_screened(box, touching, 2.0f)) << "touching its face";
+  EXPECT_TRUE(hider_screened(box, touching + 0.29f, 2.0f)) << "0.29 m between them: no agent fits";
+  EXPECT_FALSE(hider_screened(box, touching + 0.31f, 2.0f)) << "0.31 m: a seeker fits between";
+  EXPECT_TRUE(hider_screened(box, 2.0f, 2.0f - 0.25f - 0.15f - 0.29f)) << "on the other axis";
+  // Off a corner: the gap is the distance to the corner (2.25, 2.25), less the hider's radius.
+  const float diag = 0.44f / std::sqrt(2.0f);
+  EXPECT_TRUE(hider_screened(box, 2.25f + diag, 2.25f + diag));
+  EXPECT_FALSE(hider_screened(box, 2.25f + 0.34f, 2.25f + 0.34f)) << "0.48 m from the corner";
+  const Footprint turned[] = {square(2, 2, 0.25f, float(kPi / 4))};
+  EXPECT_TRUE(hider_screened(turned, 2.0f + 0.25f * std::sqrt(2.0f) + 0.44f, 2.0f))
+      << "a turned cube's corner";
+}
+
 // A door in a wall along y at x = 3.1, open over y in [1.0, 1.7] (2 cells plus the wall pieces' ends).
 DoorGap test_gap() {
   DoorGap g;
@@ -194,6 +213,7 @@ TEST(StageDetectors, StagedFortWithBothDoorsSealedCountsTwo) {
   EXPECT_EQ(st.ramp_in_room_prep, 1.0f) << "the ramp stands in the room";
   EXPECT_EQ(st.num_door_blocked_prep, 2.0f) << "a sealed door is blocked too";
   EXPECT_EQ(st.hiders_in_room_prep, 1.0f) << "both hiders stay behind their cubes";
+  EXPECT_EQ(st.hiders_screened_prep, 1.0f) << "each beside its locked cube";
   EXPECT_EQ(st.hider_seen_frac, 0.0f) << "nobody sees into a sealed room from the floor";
   EXPECT_EQ(st.seeker_high_seen, 0.0f);
   EXPECT_EQ(st.box_surf, 0.0f);
@@ -206,11 +226,43 @@ TEST(StageDetectors, OneLockedCubeSealsOneDoorAndAnUnlockedOneNone) {
   EXPECT_EQ(st.num_box_lock_prep, 1.0f);
   EXPECT_EQ(st.num_door_sealed_prep, 1.0f);
   EXPECT_EQ(st.ramp_in_room_prep, 0.0f) << "the ramp is outside the room";
+  EXPECT_EQ(st.hiders_screened_prep, 0.5f) << "one of the two hiders is beside a locked cube";
   ASSERT_EQ(stage_fort(sim, 1.0, 1.0).size(), 2u);
   st = play_episode(sim, {});
   EXPECT_EQ(st.num_door_sealed_prep, 0.0f) << "cubes in place but unlocked seal nothing";
   EXPECT_EQ(st.num_door_blocked_prep, 2.0f) << "but they block both doors";
   EXPECT_EQ(st.hiders_in_room_prep, 1.0f);
+  EXPECT_EQ(st.hiders_screened_prep, 0.0f) << "an unlocked cube screens nobody";
+}
+
+// The shelter the campaign's hiders learned (docs/training.md "The campaign so far"): both hiders in the
+// room's far corner (x 5.85, y 0.15), each facing a cube in front of it, both doors open. Locked, the cubes
+// screen both hiders though no door is sealed or blocked; unlocked, they screen nobody.
+TEST(StageDetectors, HidersBesideLockedCubesInTheRoomsCornerAreScreened) {
+  for (const bool lock : {true, false}) {
+    BatchSim sim(quadrant_config(1));
+    physics::World& world = sim.mutable_world(0);
+    world.reset(0);
+    Scene scene = world.scene();
+    scene.agents = {Spawn{5.55, 0.45, 0.15, 0.3, 0.3, 0.3}, Spawn{5.0, 0.45, 0.15, 0.3, 0.3, 0.3},
+                    Spawn{0.8, 5.2, 0.15, 0.3, 0.3, 0.3}, Spawn{1.4, 5.2, 0.15, 0.3, 0.3, 0.3}};
+    scene.num_hiders = scene.num_seekers = 2;
+    // Cubes 0.05 m in front of the hiders (along +y), 0.05 m apart: no agent passes between them.
+    scene.boxes = {Spawn{5.55, 0.9, 0.25, 0.5, 0.5, 0.5}, Spawn{5.0, 0.9, 0.25, 0.5, 0.5, 0.5}};
+    scene.ramps = {Spawn{1.0, 1.0, 0.25, 0.5, 0.5, 0.5}};
+    sim.load_scene(0, scene);
+    for (int h = 0; h < 2; ++h) {
+      const Spawn& a = scene.agents[size_t(h)];
+      world.set_agent_pose(h, a.x, a.y, a.z, kPi);  // facing +y, its cube
+    }
+    sim.resync(0);
+    const EpisodeStats st = play_episode(sim, lock ? std::vector<int>{0, 1} : std::vector<int>{});
+    EXPECT_EQ(st.num_box_lock_prep, lock ? 2.0f : 0.0f);
+    EXPECT_EQ(st.hiders_in_room_prep, 1.0f);
+    EXPECT_EQ(st.hiders_screened_prep, lock ? 1.0f : 0.0f) << "locked: " << lock;
+    EXPECT_EQ(st.num_door_sealed_prep, 0.0f) << "the doors stay open";
+    EXPECT_EQ(st.num_door_blocked_prep, 0.0f);
+  }
 }
 
 // One hider, one seeker, up to one box and one ramp, no walls and no preparation phase.
@@ -309,7 +361,7 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
   const int A = sim.layout().max_agents;
   std::vector<AgentAction> acts(size_t(config.num_envs) * A);
   physics::Rng rng(7, 0, 0);
-  double episodes = 0, sealed = 0, blocked = 0, locked = 0, surf = 0, approach = 0;
+  double episodes = 0, sealed = 0, blocked = 0, locked = 0, surf = 0, approach = 0, screened = 0;
   for (int t = 0; t < 3 * 80; ++t) {
     for (AgentAction& a : acts) a = physics::random_action(rng);
     sim.step(acts);
@@ -320,6 +372,7 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
       locked += st.num_box_lock_prep;
       surf += st.box_surf;
       approach += st.seeker_approach;
+      screened += st.hiders_screened_prep;
     }
   }
   ASSERT_EQ(episodes, 48.0);
@@ -329,6 +382,7 @@ TEST(StageDetectors, RandomPolicyCountsNoFortOnAverage) {
   EXPECT_LE(sealed, blocked) << "a sealed door is a blocked one";
   EXPECT_EQ(surf, 0.0);
   EXPECT_LT(std::abs(approach / episodes), 0.3) << "random seekers do not chase";
+  EXPECT_LT(screened / episodes, 0.1) << "random hiders end prep beside a locked box seldom: " << screened;
 }
 
 }  // namespace
