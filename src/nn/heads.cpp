@@ -87,7 +87,7 @@ void CategoricalHeads::argmax(CMat logits, int32_t* actions) const {
 
 void CategoricalHeads::backward(CMat logits, const int32_t* actions, const float* d_logp,
                                 const float* d_entropy, Mat d_logits) const {
-  std::array<double, kMaxChoices> lp{};
+  std::array<double, kMaxChoices> lp{}, p{};
   for (int r = 0; r < logits.rows; ++r) {
     const double gl = d_logp != nullptr ? d_logp[r] : 0.0;
     const double ge = d_entropy != nullptr ? d_entropy[r] : 0.0;
@@ -95,14 +95,17 @@ void CategoricalHeads::backward(CMat logits, const int32_t* actions, const float
     for (int h = 0; h < num_heads(); ++h) {
       const int n = sizes_[h];
       log_softmax(logits.row(r) + offsets_[h], n, lp.data());
-      // H = -sum p log p; dH/dl_k = -p_k (log p_k + H). dlogp_a/dl_k = [k == a] - p_k.
+      // H = -sum p log p; dH/dl_k = -p_k (log p_k + H). dlogp_a/dl_k = [k == a] - p_k. Each p_k is
+      // computed once, for the entropy and for the gradient.
       double ent = 0.0;
-      for (int i = 0; i < n; ++i) ent -= std::exp(lp[i]) * lp[i];
+      for (int i = 0; i < n; ++i) {
+        p[i] = std::exp(lp[i]);
+        ent -= p[i] * lp[i];
+      }
       const int a = actions != nullptr ? actions[static_cast<ptrdiff_t>(r) * num_heads() + h] : -1;
       for (int i = 0; i < n; ++i) {
-        const double p = std::exp(lp[i]);
-        double g = ge * (-p * (lp[i] + ent));
-        if (actions != nullptr) g += gl * ((i == a ? 1.0 : 0.0) - p);
+        double g = ge * (-p[i] * (lp[i] + ent));
+        if (actions != nullptr) g += gl * ((i == a ? 1.0 : 0.0) - p[i]);
         out[offsets_[h] + i] = static_cast<float>(g);
       }
     }
