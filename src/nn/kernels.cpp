@@ -7,6 +7,9 @@
 
 #include "nn/isa_features.hpp"
 #include "nn/simd.hpp"
+#if defined(__AVX512F__)
+#include "nn/transpose16.hpp"
+#endif
 
 namespace hns::nn::kernels {
 namespace {
@@ -127,38 +130,87 @@ void masked_softmax_short(const float*, const float*, float, int, float*) {}
 void masked_softmax_backward_short(const float*, const float*, float, int, float*) {}
 #endif
 
+// sums[r] = simd::sum<kSimd>(n, body(r, ...)) for r < count (count <= kNormRows), with the same bits. With
+// AVX-512 the rows' vector accumulators are reduced together: one 16 x 16 transposition puts lane l of every
+// row in one vector, and adding those vectors in lane order gives each row's sum in the order simd::sum adds
+// its lanes, without one serial chain of 16 additions per row. Then each row's tail, in index order.
+template <bool kSimd, class Body>
+void row_sums(int count, int n, Body&& body, float* sums) {
+#if defined(__AVX512F__)
+  if constexpr (kSimd && simd::kWidth == 16) {
+    if (count > 1) {
+      const int full = n / simd::kWidth * simd::kWidth;
+      __m512i lanes[16];
+      for (int r = 0; r < 16; ++r) {
+        Batch acc(0.0f);
+        if (r < count)
+          for (int i = 0; i < full; i += simd::kWidth) acc = acc + body(r, Batch(0.0f), i);
+        lanes[r] = _mm512_castps_si512(acc);
+      }
+      transpose16(lanes);
+      Batch total(0.0f);
+      for (int l = 0; l < 16; ++l) total = total + Batch(_mm512_castsi512_ps(lanes[l]));
+      alignas(64) float out[16];
+      total.store_aligned(out);
+      for (int r = 0; r < count; ++r) {
+        float t = out[r];
+        for (int i = full; i < n; ++i) t += body(r, 0.0f, i);
+        sums[r] = t;
+      }
+      return;
+    }
+  }
+#endif
+  for (int r = 0; r < count; ++r)
+    sums[r] = simd::sum<kSimd>(n, [&](auto tag, int i) { return body(r, tag, i); });
+}
+
 template <bool kSimd>
-void act_layer_norm_impl(const float* z, const float* pre_bias, Activation act, const float* gain,
-                         const float* bias, int n, float* a, float* y, float* stats) {
+void act_layer_norm_impl(int count, const float* const* z, const float* pre_bias, Activation act,
+                         const float* gain, const float* bias, int n, float* const* a, float* const* y,
+                         float* stats) {
   // a = act(z + pre_bias), summed for the mean. Without a bias or activation, a is z itself.
   const bool plain = pre_bias == nullptr && act == Activation::kNone;
-  if (plain) a = nullptr;
-  const float s = simd::sum<kSimd>(n, [&](auto tag, int i) {
-    using F = decltype(tag);
-    F v = load<F>(z + i);
-    if (plain) return v;
-    if (pre_bias != nullptr) v = v + load<F>(pre_bias + i);
-    v = activate(v, act);
-    store(a + i, v);
-    return v;
-  });
-  const float* src = plain ? z : a;
-  const float mean = n > 0 ? s / static_cast<float>(n) : 0.0f;
+  float sums[kNormRows], mean[kNormRows];
+  const float* src[kNormRows];
+  for (int r = 0; r < count; ++r) src[r] = plain ? z[r] : a[r];
+  row_sums<kSimd>(
+      count, n,
+      [&](int r, auto tag, int i) {
+        using F = decltype(tag);
+        F v = load<F>(z[r] + i);
+        if (plain) return v;
+        if (pre_bias != nullptr) v = v + load<F>(pre_bias + i);
+        v = activate(v, act);
+        store(a[r] + i, v);
+        return v;
+      },
+      sums);
+  for (int r = 0; r < count; ++r) mean[r] = n > 0 ? sums[r] / static_cast<float>(n) : 0.0f;
   // Two-pass variance (as tf.nn.moments).
-  const float ss = simd::sum<kSimd>(n, [&](auto tag, int i) {
-    using F = decltype(tag);
-    const F d = load<F>(src + i) - F(mean);
-    return d * d;
-  });
-  const float var = n > 0 ? ss / static_cast<float>(n) : 0.0f;
-  const float rstd = 1.0f / std::sqrt(var + kLayerNormEps);
-  stats[0] = mean;
-  stats[1] = rstd;
-  simd::for_each<kSimd>(n, [&](auto tag, int i) {
-    using F = decltype(tag);
-    const F xhat = (load<F>(src + i) - F(mean)) * F(rstd);
-    store(y + i, simd::fma(xhat, load<F>(gain + i), load<F>(bias + i)));
-  });
+  row_sums<kSimd>(
+      count, n,
+      [&](int r, auto tag, int i) {
+        using F = decltype(tag);
+        const F d = load<F>(src[r] + i) - F(mean[r]);
+        return d * d;
+      },
+      sums);
+  for (int r = 0; r < count; ++r) {
+    const float var = n > 0 ? sums[r] / static_cast<float>(n) : 0.0f;
+    const float rstd = 1.0f / std::sqrt(var + kLayerNormEps);
+    float* st = stats + 2 * static_cast<ptrdiff_t>(r);
+    st[0] = mean[r];
+    st[1] = rstd;
+    const float* sr = src[r];
+    const float m = mean[r];
+    float* yr = y[r];
+    simd::for_each<kSimd>(n, [&](auto tag, int i) {
+      using F = decltype(tag);
+      const F xhat = (load<F>(sr + i) - F(m)) * F(rstd);
+      store(yr + i, simd::fma(xhat, load<F>(gain + i), load<F>(bias + i)));
+    });
+  }
 }
 
 template <bool kSimd>
@@ -474,11 +526,19 @@ void masked_softmax_backward_scalar(const float* p, const float* dp, float scale
 
 void act_layer_norm(const float* z, const float* pre_bias, Activation act, const float* gain,
                     const float* bias, int n, float* a, float* y, float* stats) {
-  act_layer_norm_impl<true>(z, pre_bias, act, gain, bias, n, a, y, stats);
+  act_layer_norm_impl<true>(1, &z, pre_bias, act, gain, bias, n, &a, &y, stats);
 }
 void act_layer_norm_scalar(const float* z, const float* pre_bias, Activation act, const float* gain,
                            const float* bias, int n, float* a, float* y, float* stats) {
-  act_layer_norm_impl<false>(z, pre_bias, act, gain, bias, n, a, y, stats);
+  act_layer_norm_impl<false>(1, &z, pre_bias, act, gain, bias, n, &a, &y, stats);
+}
+void act_layer_norm_rows(int count, const float* const* z, const float* pre_bias, Activation act,
+                         const float* gain, const float* bias, int n, float* const* a, float* const* y,
+                         float* stats) {
+  for (int r0 = 0; r0 < count; r0 += kNormRows)
+    act_layer_norm_impl<true>(std::min(kNormRows, count - r0), z + r0, pre_bias, act, gain, bias, n,
+                              a == nullptr ? nullptr : a + r0, y + r0,
+                              stats + 2 * static_cast<ptrdiff_t>(r0));
 }
 void act_layer_norm_backward(const float* a, const float* stats, const float* gain, const float* dy,
                              Activation act, int n, float* dgain, float* dbias, float* dz) {

@@ -66,26 +66,57 @@ LayerNorm::LayerNorm(ParamLayout& layout, const std::string& name, int n) : n_(n
   bias_ = layout.add_vector(name + "/bias", n, Init::kZeros);
 }
 
+namespace {
+
+// The rows of a layer norm in blocks of kernels::kNormRows (their sums reduced together): f(in, out, count,
+// first) with the block's row pointers, in row order.
+template <class In, class Out, class F>
+void norm_blocks(int rows, In&& in_row, Out&& out_row, F&& f) {
+  const float* in[kernels::kNormRows];
+  float* out[kernels::kNormRows];
+  for (int r0 = 0; r0 < rows; r0 += kernels::kNormRows) {
+    const int count = std::min(kernels::kNormRows, rows - r0);
+    for (int i = 0; i < count; ++i) {
+      in[i] = in_row(r0 + i);
+      out[i] = out_row(r0 + i);
+    }
+    f(in, out, count, r0);
+  }
+}
+
+}  // namespace
+
 void LayerNorm::forward(const Weights& params, CMat x, Mat y, float* stats) const {
-  for (int r = 0; r < x.rows; ++r)
-    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params.values + gain_,
-                            params.values + bias_, n_, nullptr, y.row(r),
-                            stats + 2 * static_cast<ptrdiff_t>(r));
+  norm_blocks(
+      x.rows, [&](int r) { return x.row(r); }, [&](int r) { return y.row(r); },
+      [&](const float* const* in, float* const* out, int count, int r0) {
+        kernels::act_layer_norm_rows(count, in, nullptr, Activation::kNone, params.values + gain_,
+                                     params.values + bias_, n_, nullptr, out,
+                                     stats + 2 * static_cast<ptrdiff_t>(r0));
+      });
 }
 
 void LayerNorm::forward_scatter(const Weights& params, CMat x, const int32_t* y_rows, Mat y,
                                 float* stats) const {
-  for (int r = 0; r < x.rows; ++r)
-    kernels::act_layer_norm(x.row(r), nullptr, Activation::kNone, params.values + gain_,
-                            params.values + bias_, n_, nullptr, y.row(y_rows[r]),
-                            stats + 2 * static_cast<ptrdiff_t>(r));
+  norm_blocks(
+      x.rows, [&](int r) { return x.row(r); }, [&](int r) { return y.row(y_rows[r]); },
+      [&](const float* const* in, float* const* out, int count, int r0) {
+        kernels::act_layer_norm_rows(count, in, nullptr, Activation::kNone, params.values + gain_,
+                                     params.values + bias_, n_, nullptr, out,
+                                     stats + 2 * static_cast<ptrdiff_t>(r0));
+      });
 }
 
 void LayerNorm::forward_fused(const Weights& params, CMat z, const float* pre_bias, Activation act, Mat a,
                               Mat y, float* stats) const {
-  for (int r = 0; r < z.rows; ++r)
-    kernels::act_layer_norm(z.row(r), pre_bias, act, params.values + gain_, params.values + bias_, n_,
-                            a.row(r), y.row(r), stats + 2 * static_cast<ptrdiff_t>(r));
+  norm_blocks(
+      z.rows, [&](int r) { return z.row(r); }, [&](int r) { return y.row(r); },
+      [&](const float* const* in, float* const* out, int count, int r0) {
+        float* act_rows[kernels::kNormRows];
+        for (int i = 0; i < count; ++i) act_rows[i] = a.row(r0 + i);
+        kernels::act_layer_norm_rows(count, in, pre_bias, act, params.values + gain_, params.values + bias_,
+                                     n_, act_rows, out, stats + 2 * static_cast<ptrdiff_t>(r0));
+      });
 }
 
 void LayerNorm::backward(const Weights& params, float* grads, CMat x, const float* stats, CMat dy,

@@ -9,6 +9,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <string>
 #include <vector>
 
 namespace hns::nn {
@@ -211,6 +212,51 @@ TEST(NnKernels, ActLayerNormMatchesScalarAndFormula) {
       kernels::act_layer_norm_backward_scalar(a.data(), st.data(), gain.data(), dy.data(), act, n, dgs.data(),
                                               dbs.data(), dzs.data());
       EXPECT_TRUE(same_bits(dg, dgs) && same_bits(db, dbs) && same_bits(dz, dzs)) << "n = " << n;
+    }
+  }
+}
+
+// The row-block form of the forward pass (its rows' sums reduced together) equals the scalar single-row path
+// row by row, bit for bit: every width around the vector (the tails), the widths of the networks, block sizes
+// around kNormRows, both activations, with and without a bias before the norm. Inputs of very different
+// scales per element make a change of summation order visible.
+TEST(NnKernels, LayerNormRowBlocksEqualSingleRowsBitForBit) {
+  std::vector<int> widths;
+  for (int n = 0; n <= max_n(); ++n) widths.push_back(n);
+  for (int n : {64, 100, 128, 256}) widths.push_back(n);
+  for (int n : widths) {
+    for (int count : {1, 2, 7, kernels::kNormRows, kernels::kNormRows + 1, 3 * kernels::kNormRows + 5}) {
+      for (Activation act : {Activation::kNone, Activation::kRelu}) {
+        for (bool with_pre : {false, true}) {
+          const size_t len = static_cast<size_t>(count) * n;
+          auto z = random_vector(static_cast<int>(len), 300 + n + count, -3.0f, 3.0f);
+          for (size_t i = 0; i < len; ++i) z[i] *= std::ldexp(1.0f, static_cast<int>(i % 23) - 11);
+          const auto pre = random_vector(n, 310 + n);
+          const auto gain = random_vector(n, 320 + n, 0.5f, 1.5f);
+          const auto bias = random_vector(n, 330 + n);
+          const float* pre_bias = with_pre ? pre.data() : nullptr;
+          const bool plain = !with_pre && act == Activation::kNone;
+          std::vector<float> a(len), y(len), st(2 * count), as(len), ys(len), sts(2 * count);
+          std::vector<const float*> zr(count);
+          std::vector<float*> ar(count), yr(count);
+          for (int r = 0; r < count; ++r) {
+            const size_t o = static_cast<size_t>(r) * n;
+            zr[r] = z.data() + o, ar[r] = a.data() + o, yr[r] = y.data() + o;
+            kernels::act_layer_norm_scalar(z.data() + o, pre_bias, act, gain.data(), bias.data(), n,
+                                           as.data() + o, ys.data() + o, sts.data() + 2 * r);
+          }
+          kernels::act_layer_norm_rows(count, zr.data(), pre_bias, act, gain.data(), bias.data(), n,
+                                       plain ? nullptr : ar.data(), yr.data(), st.data());
+          const std::string where = "n = " + std::to_string(n) + ", rows = " + std::to_string(count) +
+                                    ", relu = " + std::to_string(act == Activation::kRelu) +
+                                    ", pre-bias = " + std::to_string(with_pre);
+          EXPECT_TRUE(same_bits(st, sts)) << where;
+          EXPECT_TRUE(same_bits(y, ys)) << where;
+          if (!plain) {
+            EXPECT_TRUE(same_bits(a, as)) << where;
+          }
+        }
+      }
     }
   }
 }
