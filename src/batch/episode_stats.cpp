@@ -84,10 +84,10 @@ void measure_stats(const EnvRef& ref, float out[kNumPrepStats]) {
   const size_t ea = size_t(env) * L.max_agents;
   for (int a = 0; a < ref.world.num_agents(); ++a) {
     if (s.agent_hider[ea + a] == 0) continue;
-    const float x = s.agent_pos[3 * (ea + a)], y = s.agent_pos[3 * (ea + a) + 1];
+    const float* p = s.agent_pos.data() + 3 * (ea + a);
     ++hiders;
-    inside += quadrant && room.contains(x, y) ? 1 : 0;
-    screened += hider_screened(locked_boxes, x, y) ? 1 : 0;
+    inside += quadrant && room.contains(p[0], p[1]) ? 1 : 0;
+    screened += hider_screened(locked_boxes, p[0], p[1], p[2]) ? 1 : 0;
   }
   out[kHidersInRoom] = hiders > 0 ? float(inside) / float(hiders) : 0.0f;
   out[kHidersScreened] = hiders > 0 ? float(screened) / float(hiders) : 0.0f;

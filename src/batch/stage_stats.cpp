@@ -120,7 +120,8 @@ bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes) {
   return false;
 }
 
-bool hider_screened(std::span<const Footprint> boxes, float x, float y) {
+bool hider_screened(std::span<const Footprint> boxes, float x, float y, float z) {
+  if (z > kHighAgentZ) return false;
   const float reach = float(kAgentRadius) + kScreenGap;  // from the hider's centre
   for (const Footprint& f : boxes) {
     if (point_distance(f, x, y) < reach) return true;

@@ -50,9 +50,10 @@ bool door_sealed(const DoorGap& gap, std::span<const Footprint> boxes);
 // agent's diameter (2 x kAgentRadius) between its body and a box's footprint, so no seeker fits between
 // them; the box screens the hider from that side. The shelter of locked boxes that hiders build in a corner
 // of the quadrant room, instead of sealing its doors, shows as hiders beside locked boxes at the end of the
-// preparation phase.
+// preparation phase. A hider standing on something (its centre above kHighAgentZ, such as on top of a box)
+// is in plain view and not screened.
 inline constexpr float kScreenGap = float(2.0 * physics::kAgentRadius);
-bool hider_screened(std::span<const Footprint> boxes, float x, float y);
+bool hider_screened(std::span<const Footprint> boxes, float x, float y, float z);
 
 // Axis-aligned rectangle, m.
 struct Rect {
