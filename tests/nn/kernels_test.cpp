@@ -255,6 +255,17 @@ TEST(NnKernels, LayerNormRowBlocksEqualSingleRowsBitForBit) {
           if (!plain) {
             EXPECT_TRUE(same_bits(a, as)) << where;
           }
+          if (!plain) {  // In place: the activations written over z, as the entity network runs it.
+            std::vector<float> za = z, yi(len), sti(2 * count);
+            std::vector<float*> zar(count), yir(count);
+            for (int r = 0; r < count; ++r) zar[r] = za.data() + static_cast<size_t>(r) * n;
+            for (int r = 0; r < count; ++r) yir[r] = yi.data() + static_cast<size_t>(r) * n;
+            std::vector<const float*> zac(zar.begin(), zar.end());
+            kernels::act_layer_norm_rows(count, zac.data(), pre_bias, act, gain.data(), bias.data(), n,
+                                         zar.data(), yir.data(), sti.data());
+            EXPECT_TRUE(same_bits(za, as) && same_bits(yi, ys) && same_bits(sti, sts))
+                << where << ", in place";
+          }
         }
       }
     }

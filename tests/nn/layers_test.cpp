@@ -2,6 +2,7 @@
 // forward pass (which also checks the float forward), plus the masking and LSTM-stepping properties users
 // rely on.
 #include "nn/layers.hpp"
+#include "nn/kernels.hpp"
 
 #include "test_util.hpp"
 
@@ -129,6 +130,48 @@ TEST(NnLayers, LayerNormBackwardMatchesFiniteDifferences) {
   expect_forward_close(y, forward(point), 1e-5, "layer norm");
   expect_gradient_matches([&](const std::vector<double>& v) { return weighted_sum(forward(v), w); }, point,
                           concat(dx, store.grads(), store.buffer_floats()), 2e-4, "layer norm");
+}
+
+// The layer's forward passes take their rows in blocks (kernels::act_layer_norm_rows); across block
+// boundaries, through forward_scatter's row map and with the fused form in place (its activations written
+// over its input, as the entity network calls it), every row equals the single-row kernel bit for bit.
+TEST(NnLayers, LayerNormForwardsEqualTheSingleRowKernelAcrossBlocks) {
+  const int rows = 2 * kernels::kNormRows + 5, n = 64;
+  ParamLayout layout;
+  LayerNorm ln(layout, "ln", n);
+  const size_t pre_off = layout.add_vector("pre", n, Init::kZeros);
+  ParamStore store(layout);
+  randomize(store, 11);
+  const float* gain = store.values() + off(store, "ln/gain");
+  const float* bias = store.values() + off(store, "ln/bias");
+  const float* pre = store.values() + pre_off;
+  const auto x = random_vector(rows * n, 12, -2.0f, 2.0f);
+  std::vector<int32_t> y_rows(rows);
+  for (int r = 0; r < rows; ++r) y_rows[r] = (r * 7 + 3) % rows;  // a permutation (7 and 37 coprime)
+  std::vector<float> y(rows * n), ys(rows * n), st(2 * rows), y_ref(rows * n), a_ref(rows * n),
+      st_ref(2 * rows);
+  auto same = [](const std::vector<float>& u, const std::vector<float>& v) {
+    return std::memcmp(u.data(), v.data(), u.size() * sizeof(float)) == 0;
+  };
+  for (int r = 0; r < rows; ++r)
+    kernels::act_layer_norm(x.data() + r * n, nullptr, Activation::kNone, gain, bias, n, nullptr,
+                            y_ref.data() + r * n, st_ref.data() + 2 * r);
+  ln.forward(store.values(), CMat(x.data(), rows, n), Mat(y.data(), rows, n), st.data());
+  EXPECT_TRUE(same(y, y_ref) && same(st, st_ref)) << "forward";
+  ln.forward_scatter(store.values(), CMat(x.data(), rows, n), y_rows.data(), Mat(ys.data(), rows, n),
+                     st.data());
+  bool scattered = same(st, st_ref);
+  for (int r = 0; r < rows; ++r)
+    scattered =
+        scattered && std::memcmp(ys.data() + y_rows[r] * n, y_ref.data() + r * n, n * sizeof(float)) == 0;
+  EXPECT_TRUE(scattered) << "forward_scatter";
+  for (int r = 0; r < rows; ++r)
+    kernels::act_layer_norm(x.data() + r * n, pre, Activation::kRelu, gain, bias, n, a_ref.data() + r * n,
+                            y_ref.data() + r * n, st_ref.data() + 2 * r);
+  std::vector<float> za = x;  // activations written over the input
+  ln.forward_fused(store.values(), CMat(za.data(), rows, n), pre, Activation::kRelu, Mat(za.data(), rows, n),
+                   Mat(y.data(), rows, n), st.data());
+  EXPECT_TRUE(same(za, a_ref) && same(y, y_ref) && same(st, st_ref)) << "forward_fused in place";
 }
 
 TEST(NnLayers, FusedBiasReluLayerNormBackwardMatchesFiniteDifferences) {
