@@ -7,6 +7,7 @@
 
 #include "nn/isa_features.hpp"
 #include "nn/simd.hpp"
+#include "nn/tensor.hpp"
 #if defined(__AVX512F__)
 #include "nn/transpose16.hpp"
 #endif
@@ -535,10 +536,8 @@ void act_layer_norm_scalar(const float* z, const float* pre_bias, Activation act
 void act_layer_norm_rows(int count, const float* const* z, const float* pre_bias, Activation act,
                          const float* gain, const float* bias, int n, float* const* a, float* const* y,
                          float* stats) {
-  for (int r0 = 0; r0 < count; r0 += kNormRows)
-    act_layer_norm_impl<true>(std::min(kNormRows, count - r0), z + r0, pre_bias, act, gain, bias, n,
-                              a == nullptr ? nullptr : a + r0, y + r0,
-                              stats + 2 * static_cast<ptrdiff_t>(r0));
+  HNS_NN_CHECK(count >= 0 && count <= kNormRows, "act_layer_norm_rows: more than kNormRows rows");
+  act_layer_norm_impl<true>(count, z, pre_bias, act, gain, bias, n, a, y, stats);
 }
 void act_layer_norm_backward(const float* a, const float* stats, const float* gain, const float* dy,
                              Activation act, int n, float* dgain, float* dbias, float* dz) {

@@ -69,11 +69,11 @@ void act_layer_norm_backward(const float* a, const float* stats, const float* ga
                              Activation act, int n, float* dgain, float* dbias, float* dz);
 void act_layer_norm_backward_scalar(const float* a, const float* stats, const float* gain, const float* dy,
                                     Activation act, int n, float* dgain, float* dbias, float* dz);
-// The forward pass for `count` rows (row r at z[r], a[r], y[r]; stats [count, 2]; a null where the single-row
-// form allows it; a[r] may be z[r]; a y row must not be another row's z or a), with the bits of count
-// single-row calls: kNormRows rows at a time, whose sums are reduced together (the serial sum of a row's
-// lanes is what limits the single-row form on short rows). Any count: it cuts its own blocks. AVX-512 builds
-// only; elsewhere it runs row by row.
+// The forward pass for a block of count <= kNormRows rows (row r at z[r], a[r], y[r]; stats [count, 2]; a[r]
+// null where the single-row form allows a null a, or equal to z[r]; a y row must not be another row's z or
+// a), with the bits of count single-row calls: the rows' sums are reduced together (the serial sum of a
+// row's lanes is what limits the single-row form on short rows). AVX-512 builds only; elsewhere it runs row
+// by row. Throws std::logic_error for more than kNormRows rows.
 inline constexpr int kNormRows = 16;
 void act_layer_norm_rows(int count, const float* const* z, const float* pre_bias, Activation act,
                          const float* gain, const float* bias, int n, float* const* a, float* const* y,

@@ -68,55 +68,51 @@ LayerNorm::LayerNorm(ParamLayout& layout, const std::string& name, int n) : n_(n
 
 namespace {
 
-// The rows of a layer norm in blocks of kernels::kNormRows (their sums reduced together): f(in, out, count,
-// first) with the block's row pointers, in row order.
-template <class In, class Out, class F>
-void norm_blocks(int rows, In&& in_row, Out&& out_row, F&& f) {
+// A layer norm's forward pass over `rows` rows, kernels::kNormRows at a time (their sums reduced together):
+// row r reads in_row(r) and writes out_row(r) and, unless a_row gives null, its activations to a_row(r).
+template <class In, class ActRow, class Out>
+void norm_forward(const float* gain, const float* bias, int n, const float* pre_bias, Activation act,
+                  int rows, In&& in_row, ActRow&& a_row, Out&& out_row, float* stats) {
   const float* in[kernels::kNormRows];
+  float* a[kernels::kNormRows];
   float* out[kernels::kNormRows];
   for (int r0 = 0; r0 < rows; r0 += kernels::kNormRows) {
     const int count = std::min(kernels::kNormRows, rows - r0);
     for (int i = 0; i < count; ++i) {
       in[i] = in_row(r0 + i);
+      a[i] = a_row(r0 + i);
       out[i] = out_row(r0 + i);
     }
-    f(in, out, count, r0);
+    kernels::act_layer_norm_rows(count, in, pre_bias, act, gain, bias, n, a, out,
+                                 stats + 2 * static_cast<ptrdiff_t>(r0));
   }
+}
+
+float* no_row(int /*r*/) {
+  return nullptr;
 }
 
 }  // namespace
 
 void LayerNorm::forward(const Weights& params, CMat x, Mat y, float* stats) const {
-  norm_blocks(
-      x.rows, [&](int r) { return x.row(r); }, [&](int r) { return y.row(r); },
-      [&](const float* const* in, float* const* out, int count, int r0) {
-        kernels::act_layer_norm_rows(count, in, nullptr, Activation::kNone, params.values + gain_,
-                                     params.values + bias_, n_, nullptr, out,
-                                     stats + 2 * static_cast<ptrdiff_t>(r0));
-      });
+  norm_forward(
+      params.values + gain_, params.values + bias_, n_, nullptr, Activation::kNone, x.rows,
+      [&](int r) { return x.row(r); }, no_row, [&](int r) { return y.row(r); }, stats);
 }
 
 void LayerNorm::forward_scatter(const Weights& params, CMat x, const int32_t* y_rows, Mat y,
                                 float* stats) const {
-  norm_blocks(
-      x.rows, [&](int r) { return x.row(r); }, [&](int r) { return y.row(y_rows[r]); },
-      [&](const float* const* in, float* const* out, int count, int r0) {
-        kernels::act_layer_norm_rows(count, in, nullptr, Activation::kNone, params.values + gain_,
-                                     params.values + bias_, n_, nullptr, out,
-                                     stats + 2 * static_cast<ptrdiff_t>(r0));
-      });
+  norm_forward(
+      params.values + gain_, params.values + bias_, n_, nullptr, Activation::kNone, x.rows,
+      [&](int r) { return x.row(r); }, no_row, [&](int r) { return y.row(y_rows[r]); }, stats);
 }
 
 void LayerNorm::forward_fused(const Weights& params, CMat z, const float* pre_bias, Activation act, Mat a,
                               Mat y, float* stats) const {
-  norm_blocks(
-      z.rows, [&](int r) { return z.row(r); }, [&](int r) { return y.row(r); },
-      [&](const float* const* in, float* const* out, int count, int r0) {
-        float* act_rows[kernels::kNormRows];
-        for (int i = 0; i < count; ++i) act_rows[i] = a.row(r0 + i);
-        kernels::act_layer_norm_rows(count, in, pre_bias, act, params.values + gain_, params.values + bias_,
-                                     n_, act_rows, out, stats + 2 * static_cast<ptrdiff_t>(r0));
-      });
+  norm_forward(
+      params.values + gain_, params.values + bias_, n_, pre_bias, act, z.rows,
+      [&](int r) { return z.row(r); }, [&](int r) { return a.row(r); }, [&](int r) { return y.row(r); },
+      stats);
 }
 
 void LayerNorm::backward(const Weights& params, float* grads, CMat x, const float* stats, CMat dy,

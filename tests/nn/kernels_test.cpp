@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -220,6 +221,12 @@ TEST(NnKernels, ActLayerNormMatchesScalarAndFormula) {
 // row by row, bit for bit: every width around the vector (the tails), the widths of the networks, block sizes
 // around kNormRows, both activations, with and without a bias before the norm. Inputs of very different
 // scales per element make a change of summation order visible.
+// f(first, count) for blocks of at most kernels::kNormRows rows, in order.
+template <class F>
+void rows_in_blocks(int rows, F&& f) {
+  for (int r0 = 0; r0 < rows; r0 += kernels::kNormRows) f(r0, std::min(kernels::kNormRows, rows - r0));
+}
+
 TEST(NnKernels, LayerNormRowBlocksEqualSingleRowsBitForBit) {
   std::vector<int> widths;
   for (int n = 0; n <= max_n(); ++n) widths.push_back(n);
@@ -245,8 +252,11 @@ TEST(NnKernels, LayerNormRowBlocksEqualSingleRowsBitForBit) {
             kernels::act_layer_norm_scalar(z.data() + o, pre_bias, act, gain.data(), bias.data(), n,
                                            as.data() + o, ys.data() + o, sts.data() + 2 * r);
           }
-          kernels::act_layer_norm_rows(count, zr.data(), pre_bias, act, gain.data(), bias.data(), n,
-                                       plain ? nullptr : ar.data(), yr.data(), st.data());
+          if (plain) std::fill(ar.begin(), ar.end(), nullptr);
+          rows_in_blocks(count, [&](int r0, int c) {
+            kernels::act_layer_norm_rows(c, zr.data() + r0, pre_bias, act, gain.data(), bias.data(), n,
+                                         ar.data() + r0, yr.data() + r0, st.data() + 2 * r0);
+          });
           const std::string where = "n = " + std::to_string(n) + ", rows = " + std::to_string(count) +
                                     ", relu = " + std::to_string(act == Activation::kRelu) +
                                     ", pre-bias = " + std::to_string(with_pre);
@@ -261,8 +271,10 @@ TEST(NnKernels, LayerNormRowBlocksEqualSingleRowsBitForBit) {
             for (int r = 0; r < count; ++r) zar[r] = za.data() + static_cast<size_t>(r) * n;
             for (int r = 0; r < count; ++r) yir[r] = yi.data() + static_cast<size_t>(r) * n;
             std::vector<const float*> zac(zar.begin(), zar.end());
-            kernels::act_layer_norm_rows(count, zac.data(), pre_bias, act, gain.data(), bias.data(), n,
-                                         zar.data(), yir.data(), sti.data());
+            rows_in_blocks(count, [&](int r0, int c) {
+              kernels::act_layer_norm_rows(c, zac.data() + r0, pre_bias, act, gain.data(), bias.data(), n,
+                                           zar.data() + r0, yir.data() + r0, sti.data() + 2 * r0);
+            });
             EXPECT_TRUE(same_bits(za, as) && same_bits(yi, ys) && same_bits(sti, sts))
                 << where << ", in place";
           }
