@@ -291,6 +291,47 @@ TEST_P(NnBf16Kernel, TransposedProductMatchesItsDefinition) {
       }
 }
 
+// Accumulating products into a C larger than 512 KB with a B of at most 512 KB: the vdpbf16ps kernel takes
+// its tiles row by row across the panels there (a cold gradient buffer, as the LSTM's weight gradients meet
+// it) instead of panel by panel. Every element, the last partial row tile and the last narrow panel
+// included, is still the documented sum, for both forms of A.
+TEST_P(NnBf16Kernel, LargeAccumulatingProductsMatchTheirDefinition) {
+  struct Shape {
+    bool transposed;
+    int rows, k, n;
+  };
+  // C: 143 x 1000 and 139 x 1030 floats (559 KB, 560 KB); B: 19 x 1000 and 17 x 1030 pairs (76 KB, 70 KB).
+  for (const Shape s : {Shape{false, 143, 37, 1000}, Shape{true, 139, 33, 1030}}) {
+    const std::vector<float> x = random_floats(size_t(s.rows) * s.k, uint32_t(s.rows));
+    const std::vector<float> w = random_floats(size_t(s.k) * s.n, uint32_t(s.n));
+    std::vector<float> a(size_t(s.rows) * s.k);  // A unpacked, [rows, k]
+    std::vector<bf16_t> ab, bb(bf16::packed_elems(s.k, s.n), kNan);
+    if (s.transposed) {
+      // x holds A^T [k, rows], as a layer's input does for its weight gradient.
+      for (int m = 0; m < s.rows; ++m)
+        for (int i = 0; i < s.k; ++i) a[size_t(m) * s.k + i] = x[size_t(i) * s.rows + m];
+      ab.assign(bf16::at_elems(s.rows, s.k), kNan);
+      bf16::convert_a_transposed(x.data(), s.rows, s.k, s.rows, ab.data());
+    } else {
+      a = x;
+      ab.assign(bf16::a_elems(s.rows, s.k), kNan);
+      bf16::convert_a(x.data(), s.k, s.rows, s.k, ab.data());
+    }
+    bf16::pack_b(w.data(), s.n, s.k, s.n, false, nullptr, bb.data());
+    std::vector<float> got = random_floats(size_t(s.rows) * s.n, 11), want = got;
+    if (s.transposed) {
+      bf16::gemm_at(ab.data(), s.rows, s.k, bb.data(), s.n, got.data(), s.n, true);
+    } else {
+      bf16::gemm(ab.data(), s.rows, s.k, bb.data(), s.n, got.data(), s.n, true);
+    }
+    naive_product(a, w, s.rows, s.k, s.n, want, true, amx());
+    for (size_t i = 0; i < got.size(); ++i)
+      ASSERT_NO_FATAL_FAILURE(expect_product(got[i], want[i],
+                                             std::string(s.transposed ? "gemm_at" : "gemm") + " at " +
+                                                 std::to_string(i / s.n) + "," + std::to_string(i % s.n)));
+  }
+}
+
 // The layers' three product forms in bf16 stay within the bf16 rounding bound of the float products:
 // |bf16 - float| <= 2 * 2^-8 * sum_k |a_k b_k| + k * 2^-24 * that sum (operand rounding of both operands,
 // then float accumulation).
