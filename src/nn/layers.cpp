@@ -175,6 +175,118 @@ void extend_circular(const float* x, int length, int in_ch, int kernel, float* x
   }
 }
 
+#if defined(__AVX512F__)
+constexpr int kConvPermutedMaxKernel = 5;
+constexpr int kConvPermutedMaxVecs = 32;  // length <= 32, out_ch <= 16: 512 outputs
+
+__mmask16 first_lanes(int count) {
+  return count >= 16  ? static_cast<__mmask16>(0xFFFF)
+         : count <= 0 ? static_cast<__mmask16>(0)
+                      : static_cast<__mmask16>((1u << count) - 1u);
+}
+
+// A row's circular extension xe[j] = x[(j - kernel / 2) mod length] for j < 32, in two registers (built by
+// two permutes of the row's two vectors).
+class CircularRow {
+ public:
+  CircularRow(int length, int kernel) : length_(length) {
+    alignas(64) int32_t ext[32];
+    for (int j = 0; j < 32; ++j) ext[j] = ((j - kernel / 2) % length + length) % length;
+    ext_lo_ = _mm512_load_si512(ext);
+    ext_hi_ = _mm512_load_si512(ext + 16);
+  }
+  void load(const float* x, __m512& lo, __m512& hi) const {
+    const __m512 x_lo = _mm512_maskz_loadu_ps(first_lanes(length_), x);
+    const __m512 x_hi = _mm512_maskz_loadu_ps(first_lanes(length_ - 16), x + 16);
+    lo = _mm512_permutex2var_ps(x_lo, ext_lo_, x_hi);
+    hi = _mm512_permutex2var_ps(x_lo, ext_hi_, x_hi);
+  }
+
+ private:
+  int length_;
+  __m512i ext_lo_, ext_hi_;
+};
+
+// CircConv1d's forward pass for one input channel, a row's outputs in their own order ([length, out_ch]):
+// per vector of 16 outputs, each lane's input xe[p + k] and weight w[k, f] are picked by permutes from two
+// registers (the row's circularly extended input, the weights), its bias b[f] from one. Each output is the
+// per-filter pass's chain: b[f], fma over k in order, then the ReLU, so the bits are the same.
+void conv1_forward_permuted(const float* w, const float* b, const int32_t* lane_pf, int length, int out_ch,
+                            int kernel, CMat x, Mat y) {
+  const int outs = length * out_ch;
+  const int vecs = (outs + 15) / 16;
+  const __m512 w_lo = _mm512_maskz_loadu_ps(first_lanes(kernel * out_ch), w);
+  const __m512 w_hi = _mm512_maskz_loadu_ps(first_lanes(kernel * out_ch - 16), w + 16);
+  const __m512 bias = _mm512_maskz_loadu_ps(first_lanes(out_ch), b);
+  // Per vector: the lanes' weights for each k and their biases; the lanes' positions p.
+  __m512 w_lane[kConvPermutedMaxVecs][kConvPermutedMaxKernel];
+  __m512 b_lane[kConvPermutedMaxVecs];
+  __m512i p_lane[kConvPermutedMaxVecs];
+  for (int v = 0; v < vecs; ++v) {
+    const __m512i p = _mm512_loadu_si512(lane_pf + v * 32);
+    const __m512i f = _mm512_loadu_si512(lane_pf + v * 32 + 16);
+    p_lane[v] = p;
+    b_lane[v] = _mm512_permutexvar_ps(f, bias);
+    for (int k = 0; k < kernel; ++k)
+      w_lane[v][k] = _mm512_permutex2var_ps(w_lo, _mm512_add_epi32(f, _mm512_set1_epi32(k * out_ch)), w_hi);
+  }
+  const CircularRow extend(length, kernel);
+  const __mmask16 last = first_lanes(outs - (vecs - 1) * 16);
+  for (int r = 0; r < x.rows; ++r) {
+    __m512 xe_lo, xe_hi;
+    extend.load(x.row(r), xe_lo, xe_hi);
+    float* yr = y.row(r);
+    for (int v = 0; v < vecs; ++v) {
+      __m512 acc = b_lane[v];
+      for (int k = 0; k < kernel; ++k) {
+        const __m512i at = _mm512_add_epi32(p_lane[v], _mm512_set1_epi32(k));
+        acc = _mm512_fmadd_ps(w_lane[v][k], _mm512_permutex2var_ps(xe_lo, at, xe_hi), acc);
+      }
+      _mm512_mask_storeu_ps(yr + v * 16, v == vecs - 1 ? last : first_lanes(16),
+                            _mm512_max_ps(acc, _mm512_setzero_ps()));
+    }
+  }
+}
+
+// The backward pass's lane sums for one input channel (CircConv1d::backward's vector accumulators, lanes
+// [(kernel + 1) * out_ch, 16]: w[k, f]'s, then b[f]'s, added to): the same chains, with the extended input
+// in registers (zero lanes where the memory form holds its zero padding) and each filter's gradient at 16
+// positions by one gather.
+void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y, Mat dy, float* lanes) {
+  const int blocks = conv_padded_length(length) / 16;
+  const CircularRow extend(length, kernel);
+  const __m512i iota = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+  __m512 acc[(kConvPermutedMaxKernel + 1) * 16];
+  const int naccs = (kernel + 1) * out_ch;
+  for (int i = 0; i < naccs; ++i) acc[i] = _mm512_load_ps(lanes + i * 16);
+  for (int r = 0; r < x.rows; ++r) {
+    __m512 xe_lo, xe_hi;
+    extend.load(x.row(r), xe_lo, xe_hi);
+    // xk[b * kernel + k]: xe[16 b + k + lane], zero from length + kernel - 1 on (the padding).
+    __m512 xk[2 * kConvPermutedMaxKernel];
+    for (int b = 0; b < blocks; ++b)
+      for (int k = 0; k < kernel; ++k)
+        xk[b * kernel + k] =
+            _mm512_maskz_permutex2var_ps(first_lanes(length + kernel - 1 - 16 * b - k), xe_lo,
+                                         _mm512_add_epi32(iota, _mm512_set1_epi32(16 * b + k)), xe_hi);
+    float* dr = dy.row(r);
+    relu_mask(dr, y.row(r), length * out_ch, dr);
+    for (int f = 0; f < out_ch; ++f)
+      for (int b = 0; b < blocks; ++b) {
+        const __m512i at = _mm512_add_epi32(
+            _mm512_mullo_epi32(_mm512_add_epi32(iota, _mm512_set1_epi32(16 * b)), _mm512_set1_epi32(out_ch)),
+            _mm512_set1_epi32(f));
+        const __m512 d =
+            _mm512_mask_i32gather_ps(_mm512_setzero_ps(), first_lanes(length - 16 * b), at, dr, 4);
+        acc[kernel * out_ch + f] = _mm512_add_ps(acc[kernel * out_ch + f], d);
+        for (int k = 0; k < kernel; ++k)
+          acc[k * out_ch + f] = _mm512_fmadd_ps(d, xk[b * kernel + k], acc[k * out_ch + f]);
+      }
+  }
+  for (int i = 0; i < naccs; ++i) _mm512_store_ps(lanes + i * 16, acc[i]);
+}
+#endif
+
 }  // namespace
 
 CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length, int in_ch, int out_ch,
@@ -188,12 +300,27 @@ CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length,
   w_ = layout.add_kernel_xavier(name + "/w", kernel * in_ch, out_ch, static_cast<float>(kernel * in_ch),
                                 static_cast<float>(kernel * out_ch));
   b_ = layout.add_vector(name + "/b", out_ch, Init::kZeros);
+#if defined(__AVX512F__)
+  if (in_ch == 1 && length + kernel - 1 <= 32 && kernel <= kConvPermutedMaxKernel && kernel * out_ch <= 32 &&
+      out_ch <= 16) {
+    const int vecs = (length * out_ch + 15) / 16;
+    lane_pf_.assign(static_cast<size_t>(vecs) * 32, 0);  // lanes past the outputs: p = f = 0 (not stored)
+    for (int q = 0; q < length * out_ch; ++q) {
+      lane_pf_[size_t(q / 16) * 32 + size_t(q % 16)] = q / out_ch;
+      lane_pf_[size_t(q / 16) * 32 + 16 + size_t(q % 16)] = q % out_ch;
+    }
+  }
+#endif
 }
 
 // Per row and filter, vectorised over output positions: acc[p] = b[f] + sum_{k, c} w[k, c, f] xe_c[p + k].
 void CircConv1d::forward(const Weights& params, CMat x, Mat y) const {
   const float* w = params.values + w_;
   const float* b = params.values + b_;
+#if defined(__AVX512F__)
+  if (!lane_pf_.empty())
+    return conv1_forward_permuted(w, b, lane_pf_.data(), length_, out_ch_, kernel_, x, y);
+#endif
   const int lp = conv_padded_length(length_), le = lp + kernel_ - 1;
   float xe[kConvMaxExtended];
   float acc[kConvMaxExtended];
@@ -227,24 +354,29 @@ void CircConv1d::backward(const Weights& /*params*/, float* grads, CMat x, CMat 
   alignas(64) float lanes[kConvMaxParams * simd::kWidth];  // [(taps + 1) * out_ch, width]: w's, then b's
   std::fill_n(lanes, (taps + 1) * out_ch_ * simd::kWidth, 0.0f);
   for (int p = length_; p < lp; ++p) dz[p] = 0.0f;
-  for (int r = 0; r < x.rows; ++r) {
-    extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
-    float* dr = dy.row(r);
-    relu_mask(dr, y.row(r), length_ * out_ch_, dr);
-    for (int f = 0; f < out_ch_; ++f) {
-      for (int p = 0; p < length_; ++p) dz[p] = dr[p * out_ch_ + f];
-      float* lb = lanes + (taps * out_ch_ + f) * simd::kWidth;
-      for (int p = 0; p < lp; p += simd::kWidth) {
-        const Batch d = load<Batch>(dz + p);
-        store(lb, load<Batch>(lb) + d);
-        for (int k = 0; k < kernel_; ++k)
-          for (int c = 0; c < in_ch_; ++c) {
-            float* lw = lanes + ((k * in_ch_ + c) * out_ch_ + f) * simd::kWidth;
-            store(lw, simd::fma(d, load<Batch>(xe + c * le + p + k), load<Batch>(lw)));
-          }
+#if defined(__AVX512F__)
+  if (!lane_pf_.empty()) {
+    conv1_backward_permuted(length_, out_ch_, kernel_, x, y, dy, lanes);
+  } else
+#endif
+    for (int r = 0; r < x.rows; ++r) {
+      extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
+      float* dr = dy.row(r);
+      relu_mask(dr, y.row(r), length_ * out_ch_, dr);
+      for (int f = 0; f < out_ch_; ++f) {
+        for (int p = 0; p < length_; ++p) dz[p] = dr[p * out_ch_ + f];
+        float* lb = lanes + (taps * out_ch_ + f) * simd::kWidth;
+        for (int p = 0; p < lp; p += simd::kWidth) {
+          const Batch d = load<Batch>(dz + p);
+          store(lb, load<Batch>(lb) + d);
+          for (int k = 0; k < kernel_; ++k)
+            for (int c = 0; c < in_ch_; ++c) {
+              float* lw = lanes + ((k * in_ch_ + c) * out_ch_ + f) * simd::kWidth;
+              store(lw, simd::fma(d, load<Batch>(xe + c * le + p + k), load<Batch>(lw)));
+            }
+        }
       }
     }
-  }
   for (int i = 0; i < (taps + 1) * out_ch_; ++i) {
     float sum = 0.0f;
     for (int l = 0; l < simd::kWidth; ++l) sum += lanes[i * simd::kWidth + l];

@@ -18,7 +18,9 @@
 #include "nn/products.hpp"
 #include "nn/tensor.hpp"
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 namespace hns::nn {
 
@@ -122,6 +124,10 @@ class CircConv1d {
   int kernel_ = 0;
   size_t w_ = 0;
   size_t b_ = 0;
+  // The output-major forward pass (AVX-512 builds, one input channel, the extended input and the weights in
+  // two vectors each, the bias in one): per 16-output vector of a row's [length, out_ch] output, each
+  // lane's position p and filter f, as (p, f) pairs. Empty where the pass does not apply.
+  std::vector<int32_t> lane_pf_;
 };
 
 // Where one entity type sits in an entity tensor X [rows, entities, width]: slots [first, first + count).

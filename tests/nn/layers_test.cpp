@@ -3,11 +3,13 @@
 // rely on.
 #include "nn/layers.hpp"
 #include "nn/kernels.hpp"
+#include "nn/simd.hpp"
 
 #include "test_util.hpp"
 
 #include <gtest/gtest.h>
 
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -239,6 +241,77 @@ TEST(NnLayers, CircConvBackwardMatchesFiniteDifferences) {
   conv.forward(store.values(), CMat(spike.data(), 1, length), Mat(ys.data(), 1, length * filters));
   for (int f = 0; f < filters; ++f)
     EXPECT_FLOAT_EQ(ys[f], std::max(store.values()[bo + f] + store.values()[wo + f], 0.0f));
+}
+
+// The conv's arithmetic, element by element, as CircConv1d documents it: each output is b[f], then an fma per
+// tap (k, then channel c) in order, then the ReLU; each parameter's gradient is summed in simd::kWidth lanes
+// (lane l: positions p = l mod the width, rows in order, then positions; zero past the length) and the lanes
+// added in order. Forms of AVX-512 builds and of the general pass must both give these bits.
+TEST(NnLayers, CircConvEqualsItsElementwiseDefinitionBitForBit) {
+  struct Shape {
+    int length, in_ch, filters, kernel;
+  };
+  const int width = simd::kWidth;
+  for (const Shape s : {Shape{30, 1, 9, 3}, Shape{7, 1, 4, 3}, Shape{16, 1, 6, 5}, Shape{28, 1, 6, 5},
+                        Shape{17, 1, 16, 1}, Shape{12, 2, 5, 3}}) {
+    const std::string where = "length " + std::to_string(s.length) + " in " + std::to_string(s.in_ch) +
+                              " filters " + std::to_string(s.filters) + " kernel " + std::to_string(s.kernel);
+    const int rows = 5, outs = s.length * s.filters, taps = s.kernel * s.in_ch;
+    ParamLayout layout;
+    CircConv1d conv(layout, "c", s.length, s.in_ch, s.filters, s.kernel);
+    ParamStore store(layout);
+    randomize(store, 20);
+    const float* w = store.values() + off(store, "c/w");
+    const float* b = store.values() + off(store, "c/b");
+    const auto x = random_vector(rows * s.length * s.in_ch, 21);
+    const auto dy0 = random_vector(rows * outs, 22);
+    std::vector<float> y(size_t(rows) * outs), dy = dy0;
+    conv.forward(store.values(), CMat(x.data(), rows, s.length * s.in_ch), Mat(y.data(), rows, outs));
+    conv.backward(store.values(), store.grads(), CMat(x.data(), rows, s.length * s.in_ch),
+                  CMat(y.data(), rows, outs), Mat(dy.data(), rows, outs));
+    // xe(r, c, j): the circularly extended input, zero from length + kernel - 1 on.
+    auto xe = [&](int r, int c, int j) {
+      if (j >= s.length + s.kernel - 1) return 0.0f;
+      const int src = (j - s.kernel / 2 + s.length) % s.length;
+      return x[size_t(r) * s.length * s.in_ch + size_t(src) * s.in_ch + c];
+    };
+    const int padded = (s.length + width - 1) / width * width;
+    std::vector<float> lanes(size_t(taps + 1) * s.filters * width, 0.0f);
+    for (int r = 0; r < rows; ++r)
+      for (int f = 0; f < s.filters; ++f)
+        for (int p = 0; p < padded; ++p) {
+          const int l = p % width;
+          float d = 0.0f;
+          if (p < s.length) {
+            float z = b[f];
+            for (int k = 0; k < s.kernel; ++k)
+              for (int c = 0; c < s.in_ch; ++c)
+                z = std::fma(w[(k * s.in_ch + c) * s.filters + f], xe(r, c, p + k), z);
+            const size_t i = size_t(r) * outs + size_t(p) * s.filters + f;
+            const float want = std::max(z, 0.0f);
+            ASSERT_EQ(std::bit_cast<uint32_t>(y[i]), std::bit_cast<uint32_t>(want))
+                << where << " forward at " << i;
+            d = y[i] > 0.0f ? dy0[i] : 0.0f;
+            ASSERT_EQ(std::bit_cast<uint32_t>(dy[i]), std::bit_cast<uint32_t>(d))
+                << where << " masked dy at " << i;
+          }
+          float& lb = lanes[(size_t(taps) * s.filters + f) * width + l];
+          lb = lb + d;
+          for (int k = 0; k < s.kernel; ++k)
+            for (int c = 0; c < s.in_ch; ++c) {
+              float& lw = lanes[(size_t(k * s.in_ch + c) * s.filters + f) * width + l];
+              lw = std::fma(d, xe(r, c, p + k), lw);
+            }
+        }
+    const float* gw = store.grads() + off(store, "c/w");
+    const float* gb = store.grads() + off(store, "c/b");
+    for (int i = 0; i < (taps + 1) * s.filters; ++i) {
+      float sum = 0.0f;
+      for (int l = 0; l < width; ++l) sum += lanes[size_t(i) * width + l];
+      const float got = i < taps * s.filters ? gw[i] : gb[i - taps * s.filters];
+      ASSERT_EQ(std::bit_cast<uint32_t>(got), std::bit_cast<uint32_t>(sum)) << where << " gradient " << i;
+    }
+  }
 }
 
 TEST(NnLayers, EntityEmbeddingBackwardMatchesFiniteDifferences) {
