@@ -16,6 +16,17 @@ void log_softmax(const float* l, int n, double* out) {
   for (int i = 0; i < n; ++i) out[i] = l[i] - lse;
 }
 
+// One head's d_logits from its log-probabilities lp, probabilities p and entropy ent (a: the action taken,
+// -1 without actions). H = -sum p log p; dH/dl_k = -p_k (log p_k + H); dlogp_a/dl_k = [k == a] - p_k.
+void head_gradient(const double* lp, const double* p, double ent, int n, int a, double gl, double ge,
+                   float* out) {
+  for (int i = 0; i < n; ++i) {
+    double g = ge * (-p[i] * (lp[i] + ent));
+    if (a >= 0) g += gl * ((i == a ? 1.0 : 0.0) - p[i]);
+    out[i] = static_cast<float>(g);
+  }
+}
+
 }  // namespace
 
 CategoricalHeads::CategoricalHeads(std::vector<int> sizes) : sizes_(std::move(sizes)) {
@@ -27,21 +38,32 @@ CategoricalHeads::CategoricalHeads(std::vector<int> sizes) : sizes_(std::move(si
   }
 }
 
-void CategoricalHeads::log_prob_entropy(CMat logits, const int32_t* actions, float* logp,
-                                        float* entropy) const {
-  std::array<double, kMaxChoices> lp{};
+void CategoricalHeads::log_prob_entropy(CMat logits, const int32_t* actions, float* logp, float* entropy,
+                                        double* saved) const {
+  std::array<double, kMaxChoices> lp_scratch{}, p_scratch{};
+  const ptrdiff_t per_row = static_cast<ptrdiff_t>(saved_doubles(1));
   for (int r = 0; r < logits.rows; ++r) {
     double sum_lp = 0.0;
     double sum_ent = 0.0;
+    double* row_saved = saved != nullptr ? saved + r * per_row : nullptr;
     for (int h = 0; h < num_heads(); ++h) {
       const int n = sizes_[h];
-      log_softmax(logits.row(r) + offsets_[h], n, lp.data());
+      // With saved: the row's log-probabilities, then its probabilities, then the heads' entropies.
+      double* lp = row_saved != nullptr ? row_saved + offsets_[h] : lp_scratch.data();
+      double* p = row_saved != nullptr ? row_saved + num_logits_ + offsets_[h] : p_scratch.data();
+      log_softmax(logits.row(r) + offsets_[h], n, lp);
       if (actions != nullptr) {
         const int a = actions[static_cast<ptrdiff_t>(r) * num_heads() + h];
         assert(a >= 0 && a < n);
         sum_lp += lp[a];
       }
-      for (int i = 0; i < n; ++i) sum_ent -= std::exp(lp[i]) * lp[i];
+      double ent = 0.0;  // this head's, as backward() sums it
+      for (int i = 0; i < n; ++i) {
+        p[i] = std::exp(lp[i]);
+        sum_ent -= p[i] * lp[i];
+        ent -= p[i] * lp[i];
+      }
+      if (row_saved != nullptr) row_saved[2 * num_logits_ + h] = ent;
     }
     if (logp != nullptr) logp[r] = static_cast<float>(sum_lp);
     if (entropy != nullptr) entropy[r] = static_cast<float>(sum_ent);
@@ -95,19 +117,29 @@ void CategoricalHeads::backward(CMat logits, const int32_t* actions, const float
     for (int h = 0; h < num_heads(); ++h) {
       const int n = sizes_[h];
       log_softmax(logits.row(r) + offsets_[h], n, lp.data());
-      // H = -sum p log p; dH/dl_k = -p_k (log p_k + H). dlogp_a/dl_k = [k == a] - p_k. Each p_k is
-      // computed once, for the entropy and for the gradient.
+      // Each p_k is computed once, for the entropy and for the gradient.
       double ent = 0.0;
       for (int i = 0; i < n; ++i) {
         p[i] = std::exp(lp[i]);
         ent -= p[i] * lp[i];
       }
       const int a = actions != nullptr ? actions[static_cast<ptrdiff_t>(r) * num_heads() + h] : -1;
-      for (int i = 0; i < n; ++i) {
-        double g = ge * (-p[i] * (lp[i] + ent));
-        if (actions != nullptr) g += gl * ((i == a ? 1.0 : 0.0) - p[i]);
-        out[offsets_[h] + i] = static_cast<float>(g);
-      }
+      head_gradient(lp.data(), p.data(), ent, n, a, gl, ge, out + offsets_[h]);
+    }
+  }
+}
+
+void CategoricalHeads::backward_saved(const double* saved, int rows, const int32_t* actions,
+                                      const float* d_logp, const float* d_entropy, Mat d_logits) const {
+  const ptrdiff_t per_row = static_cast<ptrdiff_t>(saved_doubles(1));
+  for (int r = 0; r < rows; ++r) {
+    const double gl = d_logp != nullptr ? d_logp[r] : 0.0;
+    const double ge = d_entropy != nullptr ? d_entropy[r] : 0.0;
+    const double* row_saved = saved + r * per_row;
+    for (int h = 0; h < num_heads(); ++h) {
+      const int a = actions != nullptr ? actions[static_cast<ptrdiff_t>(r) * num_heads() + h] : -1;
+      head_gradient(row_saved + offsets_[h], row_saved + num_logits_ + offsets_[h],
+                    row_saved[2 * num_logits_ + h], sizes_[h], a, gl, ge, d_logits.row(r) + offsets_[h]);
     }
   }
 }

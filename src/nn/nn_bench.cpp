@@ -116,11 +116,15 @@ void bench_training(const NnBenchOptions& o, ActorCritic& ac, const ObsNormalize
   const float inv_rows = 1.0f / static_cast<float>(train_rows);
   LossFn loss = [&](const ChunkOutputs& out, const ChunkGrads& g, std::span<double> stats) {
     float lp[kMaxLossRows], ent[kMaxLossRows], dlp[kMaxLossRows], dent[kMaxLossRows];
+    // The heads' softmaxes from the loss to its gradient, as the PPO loss keeps them (per thread, sized
+    // once).
+    thread_local std::vector<double> saved;
+    if (saved.size() < heads.saved_doubles(kMaxLossRows)) saved.resize(heads.saved_doubles(kMaxLossRows));
     for (int first = 0; first < out.rows; first += kMaxLossRows) {
       const int n = std::min(kMaxLossRows, out.rows - first);
       const int32_t* a = actions.data() + static_cast<ptrdiff_t>(out.first_row + first) * nh;
       const CMat logits = out.logits.block_rows(first, n);
-      heads.log_prob_entropy(logits, a, lp, ent);
+      heads.log_prob_entropy(logits, a, lp, ent, saved.data());
       for (int i = 0; i < n; ++i) {
         const int row = out.first_row + first + i;
         dlp[i] = -adv[row] * inv_rows;
@@ -129,7 +133,7 @@ void bench_training(const NnBenchOptions& o, ActorCritic& ac, const ObsNormalize
         g.d_value[first + i] = diff * inv_rows;
         stats[0] += -lp[i] * adv[row] - 0.01 * ent[i] + 0.5 * diff * diff;
       }
-      heads.backward(logits, a, dlp, dent, g.d_logits.block_rows(first, n));
+      heads.backward_saved(saved.data(), n, a, dlp, dent, g.d_logits.block_rows(first, n));
     }
   };
   AdamConfig acfg;

@@ -11,7 +11,9 @@ void ppo_chunk_loss(const nn::CategoricalHeads& heads, const PpoMinibatch& mb, c
     if (v->size() < n) v->resize(n);
   const int r0 = out.first_row;
   const int32_t* act = mb.actions + size_t(r0) * heads.num_heads();
-  heads.log_prob_entropy(out.logits, act, ls.new_logp.data(), ls.entropy.data());
+  if (ls.heads_saved.size() < heads.saved_doubles(out.rows))
+    ls.heads_saved.resize(heads.saved_doubles(out.rows));
+  heads.log_prob_entropy(out.logits, act, ls.new_logp.data(), ls.entropy.data(), ls.heads_saved.data());
   const std::span<const uint8_t> mask(mb.mask + r0, n);
   const PolicyLossStats ps =
       ppo_policy_loss({ls.new_logp.data(), n}, {mb.old_logp + r0, n}, {mb.advantages + r0, n}, mask, mb.clip,
@@ -27,7 +29,8 @@ void ppo_chunk_loss(const nn::CategoricalHeads& heads, const PpoMinibatch& mb, c
     ls.d_entropy[i] = mask[i] != 0 ? float(-mb.entropy_coef * mb.inv_total) : 0.0f;
     if (mask[i] != 0) ent += ls.entropy[i];
   }
-  heads.backward(out.logits, act, ls.grad_logp.data(), ls.d_entropy.data(), g.d_logits);
+  heads.backward_saved(ls.heads_saved.data(), out.rows, act, ls.grad_logp.data(), ls.d_entropy.data(),
+                       g.d_logits);
   stats[kPolicyLoss] += ps.loss * double(ps.count);
   stats[kValueLoss] += vl * double(ps.count);
   stats[kEntropy] += ent;

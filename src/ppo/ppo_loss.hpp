@@ -1,5 +1,5 @@
-// The trainer's minibatch loss, chunk by chunk (docs/game.md §10.4, paper appendix B): the clipped surrogate on
-// the summed log-probability of the five action heads, plus value_coef times the value loss (normalised
+// The trainer's minibatch loss, chunk by chunk (docs/game.md §10.4, paper appendix B): the clipped surrogate
+// on the summed log-probability of the five action heads, plus value_coef times the value loss (normalised
 // targets), minus entropy_coef times the entropy, each a mean over the minibatch's real agent-steps. It is an
 // nn::LossFn body: ActorCritic::forward_backward calls it once per chunk, and it writes the gradient of the
 // minibatch loss w.r.t. that chunk's logits and value outputs.
@@ -33,6 +33,7 @@ struct PpoMinibatch {
 // Per-thread scratch (grows to the largest chunk; no allocation once it has).
 struct PpoLossScratch {
   std::vector<float> new_logp, entropy, grad_logp, d_entropy, grad_value;
+  std::vector<double> heads_saved;  // the heads' softmaxes, from the loss to its gradient
 };
 
 // One chunk: reads out's logits and values, writes g (d loss / d logits, d loss / d value) and adds the

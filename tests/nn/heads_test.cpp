@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 namespace hns::nn {
@@ -74,6 +75,35 @@ TEST(NnHeads, LogProbEntropyAndGradients) {
     return s;
   };
   expect_gradient_matches(loss, ld, d, 1e-5, "categorical heads");
+}
+
+// The PPO loss takes the gradient from what log_prob_entropy saved: the same bits as backward() on the
+// logits (with and without actions, with either gradient input missing), and the save changes nothing else.
+TEST(NnHeads, BackwardFromSavedSoftmaxesEqualsBackwardBitForBit) {
+  CategoricalHeads heads(kSizes);
+  const int rows = 23;
+  const auto logits = random_vector(rows * 37, 4, -6.0f, 6.0f);
+  std::vector<int32_t> actions(rows * 5);
+  for (int i = 0; i < rows * 5; ++i) actions[i] = (i * 5 + 3) % kSizes[i % 5];
+  const auto gl = random_vector(rows, 5), ge = random_vector(rows, 6);
+  const CMat l(logits.data(), rows, 37);
+  std::vector<float> logp(rows), ent(rows), logp_saving(rows), ent_saving(rows);
+  std::vector<double> saved(heads.saved_doubles(rows));
+  heads.log_prob_entropy(l, actions.data(), logp.data(), ent.data());
+  heads.log_prob_entropy(l, actions.data(), logp_saving.data(), ent_saving.data(), saved.data());
+  EXPECT_EQ(std::memcmp(logp.data(), logp_saving.data(), sizeof(float) * rows), 0);
+  EXPECT_EQ(std::memcmp(ent.data(), ent_saving.data(), sizeof(float) * rows), 0);
+  for (const bool with_actions : {true, false})
+    for (const int inputs : {3, 1, 2}) {  // bit 0: d_logp, bit 1: d_entropy
+      const int32_t* a = with_actions ? actions.data() : nullptr;
+      const float* dl = (inputs & 1) != 0 ? gl.data() : nullptr;
+      const float* de = (inputs & 2) != 0 ? ge.data() : nullptr;
+      std::vector<float> want(rows * 37, -1.0f), got(rows * 37, -2.0f);
+      heads.backward(l, a, dl, de, Mat(want.data(), rows, 37));
+      heads.backward_saved(saved.data(), rows, a, dl, de, Mat(got.data(), rows, 37));
+      EXPECT_EQ(std::memcmp(want.data(), got.data(), sizeof(float) * want.size()), 0)
+          << "actions " << with_actions << " inputs " << inputs;
+    }
 }
 
 TEST(NnHeads, SamplingIsDeterministicAndFollowsTheDistribution) {
