@@ -92,6 +92,11 @@ void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, pt
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
              bool accumulate);
 
+// True where the vdpbf16ps kernel takes C's tiles row tile by row tile across the panels rather than panel
+// by panel (an accumulating product into a C over 512 KB with a B of at most 512 KB); the sums are the same
+// either way. For the tests, which check that their shapes reach that order.
+bool rows_outer_order(bool accumulate, int rows, int k, int n);
+
 // The scalar reference of the vdpbf16ps kernel: the same rounding of the operands and the same pair order
 // per element (fmaf of the odd element of a pair, then of the even one; denormal products and sums flushed
 // to zero as vdpbf16ps does). Reads the current kernel's layouts. Used by the tests.

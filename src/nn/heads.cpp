@@ -131,6 +131,7 @@ void CategoricalHeads::backward(CMat logits, const int32_t* actions, const float
 
 void CategoricalHeads::backward_saved(const double* saved, int rows, const int32_t* actions,
                                       const float* d_logp, const float* d_entropy, Mat d_logits) const {
+  assert(d_logits.rows >= rows);
   const ptrdiff_t per_row = static_cast<ptrdiff_t>(saved_doubles(1));
   for (int r = 0; r < rows; ++r) {
     const double gl = d_logp != nullptr ? d_logp[r] : 0.0;

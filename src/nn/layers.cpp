@@ -175,7 +175,42 @@ void extend_circular(const float* x, int length, int in_ch, int kernel, float* x
   }
 }
 
+// The general backward pass's lane sums (CircConv1d::backward's accumulators, lanes [(taps + 1) * out_ch,
+// width]: w's, then b's, added to): per row, dy masked by the ReLU in place, then per filter its output
+// gradient at every position (zero past the length) against the extended input, a vector of positions at a
+// time.
+void conv_backward_lanes(int length, int in_ch, int out_ch, int kernel, CMat x, CMat y, Mat dy,
+                         float* lanes) {
+  using simd::Batch;
+  const int lp = conv_padded_length(length), le = lp + kernel - 1;
+  const int taps = kernel * in_ch;
+  float xe[kConvMaxExtended];
+  float dz[kConvMaxExtended];
+  for (int p = length; p < lp; ++p) dz[p] = 0.0f;
+  for (int r = 0; r < x.rows; ++r) {
+    extend_circular(x.row(r), length, in_ch, kernel, xe);
+    float* dr = dy.row(r);
+    relu_mask(dr, y.row(r), length * out_ch, dr);
+    for (int f = 0; f < out_ch; ++f) {
+      for (int p = 0; p < length; ++p) dz[p] = dr[p * out_ch + f];
+      float* lb = lanes + (taps * out_ch + f) * simd::kWidth;
+      for (int p = 0; p < lp; p += simd::kWidth) {
+        const Batch d = load<Batch>(dz + p);
+        store(lb, load<Batch>(lb) + d);
+        for (int k = 0; k < kernel; ++k)
+          for (int c = 0; c < in_ch; ++c) {
+            float* lw = lanes + ((k * in_ch + c) * out_ch + f) * simd::kWidth;
+            store(lw, simd::fma(d, load<Batch>(xe + c * le + p + k), load<Batch>(lw)));
+          }
+      }
+    }
+  }
+}
+
 #if defined(__AVX512F__)
+// The one-channel passes below work in AVX-512's 16-float vectors, which are also simd::kWidth's lanes of the
+// general pass's accumulators that they share.
+static_assert(simd::kWidth == 16, "AVX-512 builds run 16-float vectors");
 constexpr int kConvPermutedMaxKernel = 5;
 constexpr int kConvPermutedMaxVecs = 32;  // length <= 32, out_ch <= 16: 512 outputs
 
@@ -197,7 +232,8 @@ class CircularRow {
   }
   void load(const float* x, __m512& lo, __m512& hi) const {
     const __m512 x_lo = _mm512_maskz_loadu_ps(first_lanes(length_), x);
-    const __m512 x_hi = _mm512_maskz_loadu_ps(first_lanes(length_ - 16), x + 16);
+    const __m512 x_hi =
+        length_ > 16 ? _mm512_maskz_loadu_ps(first_lanes(length_ - 16), x + 16) : _mm512_setzero_ps();
     lo = _mm512_permutex2var_ps(x_lo, ext_lo_, x_hi);
     hi = _mm512_permutex2var_ps(x_lo, ext_hi_, x_hi);
   }
@@ -216,7 +252,8 @@ void conv1_forward_permuted(const float* w, const float* b, const int32_t* lane_
   const int outs = length * out_ch;
   const int vecs = (outs + 15) / 16;
   const __m512 w_lo = _mm512_maskz_loadu_ps(first_lanes(kernel * out_ch), w);
-  const __m512 w_hi = _mm512_maskz_loadu_ps(first_lanes(kernel * out_ch - 16), w + 16);
+  const __m512 w_hi = kernel * out_ch > 16 ? _mm512_maskz_loadu_ps(first_lanes(kernel * out_ch - 16), w + 16)
+                                           : _mm512_setzero_ps();
   const __m512 bias = _mm512_maskz_loadu_ps(first_lanes(out_ch), b);
   // Per vector: the lanes' weights for each k and their biases; the lanes' positions p.
   __m512 w_lane[kConvPermutedMaxVecs][kConvPermutedMaxKernel];
@@ -248,10 +285,9 @@ void conv1_forward_permuted(const float* w, const float* b, const int32_t* lane_
   }
 }
 
-// The backward pass's lane sums for one input channel (CircConv1d::backward's vector accumulators, lanes
-// [(kernel + 1) * out_ch, 16]: w[k, f]'s, then b[f]'s, added to): the same chains, with the extended input
-// in registers (zero lanes where the memory form holds its zero padding) and each filter's gradient at 16
-// positions by one gather.
+// conv_backward_lanes for one input channel: the same chains, with the extended input in registers (zero
+// lanes where the memory form holds its zero padding) and each filter's output gradient (a column of dy) at
+// 16 positions by one gather.
 void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y, Mat dy, float* lanes) {
   const int blocks = conv_padded_length(length) / 16;
   const CircularRow extend(length, kernel);
@@ -313,7 +349,8 @@ CircConv1d::CircConv1d(ParamLayout& layout, const std::string& name, int length,
 #endif
 }
 
-// Per row and filter, vectorised over output positions: acc[p] = b[f] + sum_{k, c} w[k, c, f] xe_c[p + k].
+// acc[p] = b[f] + sum_{k, c} w[k, c, f] xe_c[p + k], then the ReLU: per row and filter, vectorised over
+// output positions, or (AVX-512, one channel) in the output's own order, conv1_forward_permuted.
 void CircConv1d::forward(const Weights& params, CMat x, Mat y) const {
   const float* w = params.values + w_;
   const float* b = params.values + b_;
@@ -344,39 +381,19 @@ void CircConv1d::forward(const Weights& params, CMat x, Mat y) const {
 // The weight and bias gradients are summed over the rows lane by lane (one vector accumulator per
 // parameter), and each reduced once at the end.
 void CircConv1d::backward(const Weights& /*params*/, float* grads, CMat x, CMat y, Mat dy) const {
-  using simd::Batch;
   float* gw = grads + w_;
   float* gb = grads + b_;
-  const int lp = conv_padded_length(length_), le = lp + kernel_ - 1;
   const int taps = kernel_ * in_ch_;
-  float xe[kConvMaxExtended];
-  float dz[kConvMaxExtended];
   alignas(64) float lanes[kConvMaxParams * simd::kWidth];  // [(taps + 1) * out_ch, width]: w's, then b's
   std::fill_n(lanes, (taps + 1) * out_ch_ * simd::kWidth, 0.0f);
-  for (int p = length_; p < lp; ++p) dz[p] = 0.0f;
+  bool summed = false;
 #if defined(__AVX512F__)
   if (!lane_pf_.empty()) {
     conv1_backward_permuted(length_, out_ch_, kernel_, x, y, dy, lanes);
-  } else
+    summed = true;
+  }
 #endif
-    for (int r = 0; r < x.rows; ++r) {
-      extend_circular(x.row(r), length_, in_ch_, kernel_, xe);
-      float* dr = dy.row(r);
-      relu_mask(dr, y.row(r), length_ * out_ch_, dr);
-      for (int f = 0; f < out_ch_; ++f) {
-        for (int p = 0; p < length_; ++p) dz[p] = dr[p * out_ch_ + f];
-        float* lb = lanes + (taps * out_ch_ + f) * simd::kWidth;
-        for (int p = 0; p < lp; p += simd::kWidth) {
-          const Batch d = load<Batch>(dz + p);
-          store(lb, load<Batch>(lb) + d);
-          for (int k = 0; k < kernel_; ++k)
-            for (int c = 0; c < in_ch_; ++c) {
-              float* lw = lanes + ((k * in_ch_ + c) * out_ch_ + f) * simd::kWidth;
-              store(lw, simd::fma(d, load<Batch>(xe + c * le + p + k), load<Batch>(lw)));
-            }
-        }
-      }
-    }
+  if (!summed) conv_backward_lanes(length_, in_ch_, out_ch_, kernel_, x, y, dy, lanes);
   for (int i = 0; i < (taps + 1) * out_ch_; ++i) {
     float sum = 0.0f;
     for (int l = 0; l < simd::kWidth; ++l) sum += lanes[i * simd::kWidth + l];

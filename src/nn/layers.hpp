@@ -124,9 +124,9 @@ class CircConv1d {
   int kernel_ = 0;
   size_t w_ = 0;
   size_t b_ = 0;
-  // The output-major forward pass (AVX-512 builds, one input channel, the extended input and the weights in
-  // two vectors each, the bias in one): per 16-output vector of a row's [length, out_ch] output, each
-  // lane's position p and filter f, as (p, f) pairs. Empty where the pass does not apply.
+  // The output-order passes (AVX-512 builds, one input channel, the extended input and the weights in two
+  // vectors each, the bias in one): per 16-output vector of a row's [length, out_ch] output, 32 ints: the
+  // 16 lanes' positions p, then their filters f. Empty where the passes do not apply.
   std::vector<int32_t> lane_pf_;
 };
 

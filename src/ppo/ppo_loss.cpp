@@ -11,8 +11,8 @@ void ppo_chunk_loss(const nn::CategoricalHeads& heads, const PpoMinibatch& mb, c
     if (v->size() < n) v->resize(n);
   const int r0 = out.first_row;
   const int32_t* act = mb.actions + size_t(r0) * heads.num_heads();
-  if (ls.heads_saved.size() < heads.saved_doubles(out.rows))
-    ls.heads_saved.resize(heads.saved_doubles(out.rows));
+  if (ls.heads_saved.size() < heads.saved_doubles(out.logits.rows))
+    ls.heads_saved.resize(heads.saved_doubles(out.logits.rows));
   heads.log_prob_entropy(out.logits, act, ls.new_logp.data(), ls.entropy.data(), ls.heads_saved.data());
   const std::span<const uint8_t> mask(mb.mask + r0, n);
   const PolicyLossStats ps =

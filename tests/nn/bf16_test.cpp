@@ -300,8 +300,9 @@ TEST_P(NnBf16Kernel, LargeAccumulatingProductsMatchTheirDefinition) {
     bool transposed;
     int rows, k, n;
   };
-  // C: 143 x 1000 and 139 x 1030 floats (559 KB, 560 KB); B: 19 x 1000 and 17 x 1030 pairs (76 KB, 70 KB).
+  // C: 143 x 1000 and 139 x 1030 floats (559 and 559 KiB); B: 19 x 1000 and 17 x 1030 pairs (74 and 68 KiB).
   for (const Shape s : {Shape{false, 143, 37, 1000}, Shape{true, 139, 33, 1030}}) {
+    ASSERT_TRUE(bf16::rows_outer_order(true, s.rows, s.k, s.n)) << "the shapes no longer reach that order";
     const std::vector<float> x = random_floats(size_t(s.rows) * s.k, uint32_t(s.rows));
     const std::vector<float> w = random_floats(size_t(s.k) * s.n, uint32_t(s.n));
     std::vector<float> a(size_t(s.rows) * s.k);  // A unpacked, [rows, k]

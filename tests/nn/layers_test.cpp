@@ -252,8 +252,12 @@ TEST(NnLayers, CircConvEqualsItsElementwiseDefinitionBitForBit) {
     int length, in_ch, filters, kernel;
   };
   const int width = simd::kWidth;
-  for (const Shape s : {Shape{30, 1, 9, 3}, Shape{7, 1, 4, 3}, Shape{16, 1, 6, 5}, Shape{28, 1, 6, 5},
-                        Shape{17, 1, 16, 1}, Shape{12, 2, 5, 3}}) {
+  // The models' shape and others of one channel within the AVX-512 output-order passes' limits (extended
+  // input and weights at most 32 floats, at most 16 filters), then just past each limit and two channels
+  // (the general pass).
+  for (const Shape s :
+       {Shape{30, 1, 9, 3}, Shape{7, 1, 4, 3}, Shape{16, 1, 6, 5}, Shape{28, 1, 6, 5}, Shape{17, 1, 16, 1},
+        Shape{31, 1, 9, 3}, Shape{30, 1, 11, 3}, Shape{10, 1, 17, 1}, Shape{12, 2, 5, 3}}) {
     const std::string where = "length " + std::to_string(s.length) + " in " + std::to_string(s.in_ch) +
                               " filters " + std::to_string(s.filters) + " kernel " + std::to_string(s.kernel);
     const int rows = 5, outs = s.length * s.filters, taps = s.kernel * s.in_ch;
