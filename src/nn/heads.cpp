@@ -60,8 +60,9 @@ void CategoricalHeads::log_prob_entropy(CMat logits, const int32_t* actions, flo
       double ent = 0.0;  // this head's, as backward() sums it
       for (int i = 0; i < n; ++i) {
         p[i] = std::exp(lp[i]);
-        sum_ent -= p[i] * lp[i];
-        ent -= p[i] * lp[i];
+        const double plp = p[i] * lp[i];
+        sum_ent -= plp;
+        ent -= plp;
       }
       if (row_saved != nullptr) row_saved[2 * num_logits_ + h] = ent;
     }

@@ -95,9 +95,7 @@ void masked_softmax_backward_impl(const float* p, const float* dp, float scale, 
 // stall store forwarding.)
 constexpr bool kShortRows = simd::kWidth == 16;
 
-__mmask16 first_lanes(int n) {
-  return static_cast<__mmask16>((1u << n) - 1u);
-}
+using simd::first_lanes;
 
 void masked_softmax_short(const float* logits, const float* mask, float scale, int n, float* p) {
   const __mmask16 k = first_lanes(n);

@@ -214,11 +214,7 @@ static_assert(simd::kWidth == 16, "AVX-512 builds run 16-float vectors");
 constexpr int kConvPermutedMaxKernel = 5;
 constexpr int kConvPermutedMaxVecs = 32;  // length <= 32, out_ch <= 16: 512 outputs
 
-__mmask16 first_lanes(int count) {
-  return count >= 16  ? static_cast<__mmask16>(0xFFFF)
-         : count <= 0 ? static_cast<__mmask16>(0)
-                      : static_cast<__mmask16>((1u << count) - 1u);
-}
+using simd::first_lanes;
 
 // A row's circular extension xe[j] = x[(j - kernel / 2) mod length] for j < 32, in two registers (built by
 // two permutes of the row's two vectors).
@@ -292,6 +288,11 @@ void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y,
   const int blocks = conv_padded_length(length) / 16;
   const CircularRow extend(length, kernel);
   const __m512i iota = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
+  // Lane l of block b reads dy's element (16 b + l) * out_ch + f: these bases, plus f.
+  __m512i dy_at[2];
+  for (int b = 0; b < blocks; ++b)
+    dy_at[b] =
+        _mm512_mullo_epi32(_mm512_add_epi32(iota, _mm512_set1_epi32(16 * b)), _mm512_set1_epi32(out_ch));
   __m512 acc[(kConvPermutedMaxKernel + 1) * 16];
   const int naccs = (kernel + 1) * out_ch;
   for (int i = 0; i < naccs; ++i) acc[i] = _mm512_load_ps(lanes + i * 16);
@@ -309,9 +310,7 @@ void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y,
     relu_mask(dr, y.row(r), length * out_ch, dr);
     for (int f = 0; f < out_ch; ++f)
       for (int b = 0; b < blocks; ++b) {
-        const __m512i at = _mm512_add_epi32(
-            _mm512_mullo_epi32(_mm512_add_epi32(iota, _mm512_set1_epi32(16 * b)), _mm512_set1_epi32(out_ch)),
-            _mm512_set1_epi32(f));
+        const __m512i at = _mm512_add_epi32(dy_at[b], _mm512_set1_epi32(f));
         const __m512 d =
             _mm512_mask_i32gather_ps(_mm512_setzero_ps(), first_lanes(length - 16 * b), at, dr, 4);
         acc[kernel * out_ch + f] = _mm512_add_ps(acc[kernel * out_ch + f], d);

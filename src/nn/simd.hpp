@@ -45,6 +45,14 @@ inline Batch fma(const Batch& a, const Batch& b, const Batch& c) {
   return xsimd::fma(a, b, c);
 #endif
 }
+#if defined(__AVX512F__)
+// The mask of a vector's first `count` lanes (none for count <= 0, all 16 from 16 on).
+inline __mmask16 first_lanes(int count) {
+  return count >= 16  ? static_cast<__mmask16>(0xFFFF)
+         : count <= 0 ? static_cast<__mmask16>(0)
+                      : static_cast<__mmask16>((1u << count) - 1u);
+}
+#endif
 // max/min with the x86 rule (a > b ? a : b), identical in both paths.
 inline float max(float a, float b) {
   return a > b ? a : b;
