@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <deque>
 #include <limits>
+#include <stdexcept>
 
 namespace hns::replay {
 namespace {
@@ -167,6 +168,94 @@ StageReport detect_stages(const MetricsRows& rows, const std::string& scene) {
     for (size_t i = 0; i < t.value.size(); ++i) t.on[i] = t.value[i] >= t.threshold ? 1 : 0;
   }
   return report;
+}
+
+const std::vector<DetectorColumn>& DetectorTable::columns() {
+  static const std::vector<DetectorColumn> cols = {
+      {"hider_ret", "hider_reward", nullptr},
+      {"approach", "seeker_approach", nullptr},
+      {"in_room", "hiders_in_room_prep", nullptr},
+      {"screened", "hiders_screened_prep", nullptr},
+      {"seen", "hider_seen_frac", nullptr},
+      {"blocked", "num_door_blocked_prep", "num_doors"},
+      {"sealed", "num_door_sealed_prep", "num_doors"},
+      {"box_lock", "num_box_lock_prep", nullptr},
+      {"ramp_lock", "num_ramp_lock_prep", nullptr},
+      {"high_seen", "seeker_high_seen", nullptr},
+      {"ramp_room", "ramp_in_room_prep", nullptr},
+      {"box_surf", "box_surf", nullptr},
+      {"entropy", "entropy", nullptr},
+  };
+  return cols;
+}
+
+DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_steps) {
+  if (window_agent_steps < 1) throw std::invalid_argument("the window must hold at least one agent-step");
+  const std::vector<DetectorColumn>& cols = DetectorTable::columns();
+  const nlohmann::json all = nlohmann::json::parse(rows.json);
+  DetectorTable table;
+  std::vector<double> num, den;  // the current window's sums per column
+  auto finish = [&] {
+    DetectorWindow& w = table.windows.back();
+    for (size_t c = 0; c < cols.size(); ++c)
+      w.mean.push_back(den[c] > 0 ? num[c] / den[c] : std::numeric_limits<double>::quiet_NaN());
+  };
+  for (const nlohmann::json& row : all) {
+    const double steps = number(row, "agent_steps");
+    if (!std::isfinite(steps) || steps < 1) continue;
+    const int64_t last = int64_t(steps);
+    const int64_t begin = (last - 1) / window_agent_steps * window_agent_steps;
+    if (table.windows.empty() || table.windows.back().begin != begin) {
+      if (!table.windows.empty()) finish();
+      table.windows.push_back({begin, begin + window_agent_steps, last, 0, 0, {}});
+      num.assign(cols.size(), 0.0);
+      den.assign(cols.size(), 0.0);
+    }
+    DetectorWindow& w = table.windows.back();
+    w.last_agent_steps = last;
+    ++w.iterations;
+    const double e = number(row, "episodes");
+    if (!(e > 0)) continue;  // no episode ended: nothing to average
+    w.episodes += e;
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const double a = number(row, cols[c].key);
+      const double b = cols[c].denominator ? number(row, cols[c].denominator) : 1.0;
+      if (std::isfinite(a) && std::isfinite(b)) num[c] += a * e, den[c] += b * e;
+    }
+  }
+  if (!table.windows.empty()) finish();
+  return table;
+}
+
+std::vector<std::string> DetectorTable::lines() const {
+  const std::vector<DetectorColumn>& cols = columns();
+  std::vector<std::string> out;
+  std::string head = "window (M agent-steps)  iterations   episodes";
+  for (const DetectorColumn& c : cols) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, " %9s", c.header);
+    head += buf;
+  }
+  out.push_back(head);
+  for (const DetectorWindow& w : windows) {
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "%g-%g (to %.4g)", w.begin / 1e6, w.end / 1e6, w.last_agent_steps / 1e6);
+    char lead[128];
+    std::snprintf(lead, sizeof lead, "%-22s  %10lld %10.0f", buf, static_cast<long long>(w.iterations),
+                  w.episodes);
+    std::string line = lead;
+    for (size_t c = 0; c < cols.size(); ++c) {
+      const double v = w.mean[c];
+      if (!std::isfinite(v)) {
+        line += "         -";
+      } else {
+        std::snprintf(buf, sizeof buf, c == 0 ? " %+9.2f" : " %9.3f", v);
+        line += buf;
+      }
+    }
+    out.push_back(line);
+  }
+  return out;
 }
 
 std::string StageTrack::reached_text() const {

@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -127,6 +128,59 @@ TEST(Stages, QuadrantBoxSurfingFromItsShareOfEpisodes) {
   // Windows of 10 iterations: 0.05 x (10 - k) + 0.15 x k >= 0.1 from k = 5, iteration 25.
   EXPECT_EQ(stage(r, "box surfing").first_iteration, 25);
   EXPECT_EQ(stage(r, "fort building").first_row, -1) << "no door statistics in these rows";
+}
+
+// hns report --windows: rows go to the window of their last agent-step, each detector is the
+// episode-weighted mean over the rows that have it, the door detectors per door (a ratio of sums).
+TEST(Stages, DetectorWindowsAreEpisodeWeightedMeansPerWindowOfAgentSteps) {
+  const std::string text =
+      // window [0, 2500): rows ending at 1000 and 2000
+      "{\"iteration\": 1, \"agent_steps\": 1000, \"episodes\": 10, \"hider_reward\": 4, "
+      "\"num_doors\": 1, \"num_door_sealed_prep\": 1, \"entropy\": 8}\n"
+      "{\"iteration\": 2, \"agent_steps\": 2000, \"episodes\": 30, \"hider_reward\": -4, "
+      "\"num_doors\": 2, \"num_door_sealed_prep\": 1, \"entropy\": 6}\n"
+      // window [2500, 5000): the row ending at exactly 5000 is in it; the row at 4000 has no detectors
+      "{\"iteration\": 3, \"agent_steps\": 3000, \"episodes\": 5, \"hider_reward\": 1}\n"
+      "{\"iteration\": 4, \"agent_steps\": 4000, \"episodes\": 7}\n"
+      "{\"iteration\": 5, \"agent_steps\": 5000, \"episodes\": 15, \"hider_reward\": 5}\n"
+      // window [5000, 7500) is empty and left out; [7500, 10000) holds the last row
+      "{\"iteration\": 6, \"agent_steps\": 8000, \"episodes\": 2, \"hider_reward\": 0, "
+      "\"seeker_approach\": 0.5}\n";
+  const DetectorTable t = detector_windows(read_metrics_jsonl(text), 2500);
+  const auto& cols = DetectorTable::columns();
+  auto col = [&](const char* key) {
+    for (size_t c = 0; c < cols.size(); ++c)
+      if (std::string_view(cols[c].key) == key) return c;
+    throw std::runtime_error(std::string("no column ") + key);
+  };
+  ASSERT_EQ(t.windows.size(), 3u);
+  const DetectorWindow& w0 = t.windows[0];
+  EXPECT_EQ(w0.begin, 0);
+  EXPECT_EQ(w0.end, 2500);
+  EXPECT_EQ(w0.last_agent_steps, 2000);
+  EXPECT_EQ(w0.iterations, 2);
+  EXPECT_EQ(w0.episodes, 40);
+  EXPECT_DOUBLE_EQ(w0.mean[col("hider_reward")], (4.0 * 10 - 4.0 * 30) / 40);
+  EXPECT_DOUBLE_EQ(w0.mean[col("entropy")], (8.0 * 10 + 6.0 * 30) / 40);
+  // Per door: (1 x 10 + 1 x 30) / (1 x 10 + 2 x 30), not the mean of the rows' ratios.
+  EXPECT_DOUBLE_EQ(w0.mean[col("num_door_sealed_prep")], 40.0 / 70.0);
+  EXPECT_TRUE(std::isnan(w0.mean[col("seeker_approach")]));
+  const DetectorWindow& w1 = t.windows[1];
+  EXPECT_EQ(w1.begin, 2500);
+  EXPECT_EQ(w1.last_agent_steps, 5000);
+  EXPECT_EQ(w1.iterations, 3);
+  EXPECT_EQ(w1.episodes, 27);
+  EXPECT_DOUBLE_EQ(w1.mean[col("hider_reward")], (1.0 * 5 + 5.0 * 15) / 20) << "the row without it left out";
+  const DetectorWindow& w2 = t.windows[2];
+  EXPECT_EQ(w2.begin, 7500);
+  EXPECT_EQ(w2.iterations, 1);
+  EXPECT_DOUBLE_EQ(w2.mean[col("seeker_approach")], 0.5);
+  const std::vector<std::string> lines = t.lines();
+  ASSERT_EQ(lines.size(), 4u);
+  EXPECT_EQ(lines[0].rfind("window (M agent-steps)", 0), 0u) << lines[0];
+  EXPECT_EQ(lines[3].rfind("0.0075-0.01 (to 0.008)", 0), 0u) << lines[3];
+  EXPECT_NE(lines[1].find("-2.00"), std::string::npos) << lines[1];
+  EXPECT_THROW(detector_windows(read_metrics_jsonl(text), 0), std::invalid_argument);
 }
 
 }  // namespace
