@@ -141,8 +141,8 @@ void add_report_command(CLI::App& app, std::vector<Command>& commands) {
       "report",
       "A training run's self-contained HTML report, and its stage detectors per window of agent-steps");
   cmd->add_option("run_dir", opt->dir, "Run folder written by `hns train`")->required();
-  cmd->add_option("--html", opt->html, "HTML file to write");
-  cmd->add_option("--title", opt->title, "Title shown in the page");
+  CLI::Option* html = cmd->add_option("--html", opt->html, "HTML file to write");
+  cmd->add_option("--title", opt->title, "Title shown in the page")->needs(html);
   cmd->add_option("--windows", opt->windows,
                   "Print the stage detectors' means per window of this many million agent-steps")
       ->check(CLI::Range(0.001, 1e6));

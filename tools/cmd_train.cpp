@@ -413,8 +413,9 @@ void print_run_start(const ppo::Trainer& trainer, const RunSetup& run, const ppo
   if (!initialized.empty())
     std::printf("  starting from %s: %s\n", cfg.init_from.c_str(), initialized.c_str());
   std::printf(
-      "  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s)\n",
-      run.dir.c_str(), run.dir.c_str());
+      "  outputs in %s: metrics.jsonl, checkpoint.bin, config.json, replay.traj (see: hns report %s --html "
+      "%s/report.html)\n",
+      run.dir.c_str(), run.dir.c_str(), run.dir.c_str());
   std::fflush(stdout);
 }
 

@@ -4,11 +4,14 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <deque>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 
 namespace hns::replay {
@@ -60,6 +63,24 @@ double number(const nlohmann::json& row, const char* key) {
   return it != row.end() && it->is_number() ? it->get<double>() : std::numeric_limits<double>::quiet_NaN();
 }
 
+// Counts (iterations, agent-steps) above this are taken as this: no run gets there, a damaged metrics file
+// might, and the int64 arithmetic on them must not overflow.
+constexpr double kMaxCount = 4611686018427387904.0;  // 2^62
+
+int64_t count_of(double v) {
+  return v >= 0 ? int64_t(std::min(v, kMaxCount)) : 0;  // NaN and negative: 0
+}
+
+// A row's statistic `key` (over `denominator`, or per episode) weighted by the row's episodes e: {e, key x e,
+// denominator x e}, or nothing where the row lacks either or ended no episode (it would add nothing).
+std::optional<std::array<double, 3>> weighted(const nlohmann::json& row, double e, const char* key,
+                                              const char* denominator) {
+  const double a = number(row, key);
+  const double b = denominator ? number(row, denominator) : 1.0;
+  if (!(e > 0) || !std::isfinite(a) || !std::isfinite(b)) return std::nullopt;
+  return std::array<double, 3>{e, a * e, b * e};
+}
+
 // "16.6M", "512k", "900".
 std::string short_count(double v) {
   char buf[32];
@@ -103,15 +124,13 @@ struct StageWindows {
   std::vector<int> add(const nlohmann::json& row) {
     std::vector<int> reached;
     const double e = number(row, "episodes");
-    episodes += std::isfinite(e) ? int64_t(e) : 0;
+    episodes += count_of(e);
     for (size_t k = 0; k < windows.size(); ++k) {
       Window& w = windows[k];
-      const double a = number(row, w.rule.numerator);
-      const double b = w.rule.denominator ? number(row, w.rule.denominator) : 1.0;
-      const bool counts = e > 0 && std::isfinite(a) && std::isfinite(b);
-      if (counts) {  // rows without the statistics stay out of the window (they would add nothing to it)
-        w.rows.push_back({e, a * e, b * e});
-        w.ep += e, w.num += a * e, w.den += b * e;
+      // Rows without the statistics stay out of the window.
+      if (const auto r = weighted(row, e, w.rule.numerator, w.rule.denominator)) {
+        w.rows.push_back(*r);
+        w.ep += (*r)[0], w.num += (*r)[1], w.den += (*r)[2];
       }
       while (w.rows.size() > 1 && w.ep - w.rows.front()[0] >= kStageWindowEpisodes) {
         w.ep -= w.rows.front()[0], w.num -= w.rows.front()[1], w.den -= w.rows.front()[2];
@@ -122,8 +141,8 @@ struct StageWindows {
       StageTrack& t = stages[k];
       if (w.value >= w.rule.threshold && t.first_row < 0) {
         t.first_row = rows;
-        t.first_iteration = int64_t(number(row, "iteration"));
-        t.first_agent_steps = int64_t(number(row, "agent_steps"));
+        t.first_iteration = count_of(number(row, "iteration"));
+        t.first_agent_steps = count_of(number(row, "agent_steps"));
         t.first_episodes = episodes;
         reached.push_back(int(k));
       }
@@ -194,6 +213,7 @@ DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_ste
   const std::vector<DetectorColumn>& cols = DetectorTable::columns();
   const nlohmann::json all = nlohmann::json::parse(rows.json);
   DetectorTable table;
+  table.window = window_agent_steps;
   std::vector<double> num, den;  // the current window's sums per column
   auto finish = [&] {
     DetectorWindow& w = table.windows.back();
@@ -202,9 +222,11 @@ DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_ste
   };
   for (const nlohmann::json& row : all) {
     const double steps = number(row, "agent_steps");
-    if (!std::isfinite(steps) || steps < 1) continue;
-    const int64_t last = int64_t(steps);
+    if (!(steps >= 1) || steps >= kMaxCount) continue;
+    const int64_t last = count_of(steps);
     const int64_t begin = (last - 1) / window_agent_steps * window_agent_steps;
+    // A new window at every change (rows of one run only go forwards; a file of two runs' rows pasted
+    // together would show a window twice).
     if (table.windows.empty() || table.windows.back().begin != begin) {
       if (!table.windows.empty()) finish();
       table.windows.push_back({begin, begin + window_agent_steps, last, 0, 0, {}});
@@ -215,12 +237,10 @@ DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_ste
     w.last_agent_steps = last;
     ++w.iterations;
     const double e = number(row, "episodes");
-    if (!(e > 0)) continue;  // no episode ended: nothing to average
-    w.episodes += e;
+    if (e > 0) w.episodes += e;
     for (size_t c = 0; c < cols.size(); ++c) {
-      const double a = number(row, cols[c].key);
-      const double b = cols[c].denominator ? number(row, cols[c].denominator) : 1.0;
-      if (std::isfinite(a) && std::isfinite(b)) num[c] += a * e, den[c] += b * e;
+      if (const auto r = weighted(row, e, cols[c].key, cols[c].denominator))
+        num[c] += (*r)[1], den[c] += (*r)[2];
     }
   }
   if (!table.windows.empty()) finish();
@@ -229,21 +249,39 @@ DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_ste
 
 std::vector<std::string> DetectorTable::lines() const {
   const std::vector<DetectorColumn>& cols = columns();
+  // Millions of agent-steps with as many decimals as the window needs to be exact (up to 6), the last row's
+  // with one more.
+  int decimals = 0;
+  for (int64_t unit = 1000000; decimals < 6 && window % unit != 0; unit /= 10) ++decimals;
+  auto millions = [](int64_t steps, int d) {
+    char buf[48];
+    std::snprintf(buf, sizeof buf, "%.*f", d, double(steps) / 1e6);
+    return std::string(buf);
+  };
+  std::vector<std::string> labels;
+  size_t width = std::strlen("window (M agent-steps)");
+  for (const DetectorWindow& w : windows) {
+    labels.push_back(millions(w.begin, decimals) + "-" + millions(w.end, decimals) + " (to " +
+                     millions(w.last_agent_steps, std::min(decimals + 1, 6)) + ")");
+    width = std::max(width, labels.back().size());
+  }
+  auto pad = [width](std::string text) {
+    text.resize(width, ' ');
+    return text;
+  };
   std::vector<std::string> out;
-  std::string head = "window (M agent-steps)  iterations   episodes";
+  std::string head = pad("window (M agent-steps)") + "  iterations   episodes";
   for (const DetectorColumn& c : cols) {
     char buf[32];
     std::snprintf(buf, sizeof buf, " %9s", c.header);
     head += buf;
   }
   out.push_back(head);
-  for (const DetectorWindow& w : windows) {
+  for (size_t k = 0; k < windows.size(); ++k) {
+    const DetectorWindow& w = windows[k];
     char buf[64];
-    std::snprintf(buf, sizeof buf, "%g-%g (to %.4g)", w.begin / 1e6, w.end / 1e6, w.last_agent_steps / 1e6);
-    char lead[128];
-    std::snprintf(lead, sizeof lead, "%-22s  %10lld %10.0f", buf, static_cast<long long>(w.iterations),
-                  w.episodes);
-    std::string line = lead;
+    std::snprintf(buf, sizeof buf, "  %10lld %10.0f", static_cast<long long>(w.iterations), w.episodes);
+    std::string line = pad(labels[k]) + buf;
     for (size_t c = 0; c < cols.size(); ++c) {
       const double v = w.mean[c];
       if (!std::isfinite(v)) {

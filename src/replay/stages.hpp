@@ -69,19 +69,16 @@ class StageTracker {
 // before a statistic existed (older runs, resumed with a newer hns) leave that statistic's windows.
 StageReport detect_stages(const MetricsRows& rows, const std::string& scene);
 
-// The stage detectors' means per window of agent-steps: the log of a long run (`hns report --windows`;
-// docs/training.md "Stages"). A row belongs to the window of its last agent-step (a row ending at exactly
-// 50 M agent-steps is in 0-50 M). Each detector is the episode-weighted mean over the window's rows that have
-// it, the door detectors per door (the sum of value x episodes over the sum of num_doors x episodes, as the
-// fort criterion); NaN where no row of the window has it.
+// One window of detector_windows: the rows whose agent_steps lie in (begin, end].
 struct DetectorWindow {
-  int64_t begin = 0, end = 0;    // the window's agent-steps, [begin, end)
-  int64_t last_agent_steps = 0;  // agent_steps of its last row
+  int64_t begin = 0, end = 0;
+  int64_t last_agent_steps = 0;  // agent_steps of its last row (below end in a window the run has not filled)
   int64_t iterations = 0;        // its rows
   double episodes = 0;           // episodes its rows finished
-  std::vector<double> mean;      // per DetectorTable::columns
+  std::vector<double> mean;      // per DetectorTable::columns(); NaN: no row of the window has it
 };
 
+// A column of the table: metrics key, and the key it is divided by (the door detectors, per door).
 struct DetectorColumn {
   const char* header;       // "sealed"
   const char* key;          // "num_door_sealed_prep"
@@ -90,12 +87,19 @@ struct DetectorColumn {
 
 struct DetectorTable {
   static const std::vector<DetectorColumn>& columns();
-  std::vector<DetectorWindow> windows;  // in order; windows without rows are left out
+  int64_t window = 1;                   // agent-steps per window
+  std::vector<DetectorWindow> windows;  // in the rows' order; windows without rows are left out
   // A header line and one line per window ("-" for NaN), agent-steps in millions.
   std::vector<std::string> lines() const;
 };
 
-// Throws std::invalid_argument for a window below 1 agent-step; rows without agent_steps are skipped.
+// The stage detectors' means per window of agent-steps: the log of a long run (`hns report --windows`;
+// docs/training.md "Stages"). A row belongs to the window of its last agent-step (a row ending at exactly
+// 50 M agent-steps is in 0-50 M). Each column is the mean over the window's rows that have it and finished
+// episodes, weighted by their episodes (entropy too, which is per iteration), the door detectors per door
+// (the sum of value x episodes over the sum of num_doors x episodes, as the fort criterion). Rows whose
+// agent_steps is below 1 or at least 2^62 (a damaged file) are skipped. Throws std::invalid_argument for a
+// window below 1 agent-step.
 DetectorTable detector_windows(const MetricsRows& rows, int64_t window_agent_steps);
 
 }  // namespace hns::replay

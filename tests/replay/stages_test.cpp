@@ -3,8 +3,11 @@
 // rows without a statistic left out of its windows.
 #include "replay/stages.hpp"
 
+#include "batch/batch_sim.hpp"
+
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -178,9 +181,39 @@ TEST(Stages, DetectorWindowsAreEpisodeWeightedMeansPerWindowOfAgentSteps) {
   const std::vector<std::string> lines = t.lines();
   ASSERT_EQ(lines.size(), 4u);
   EXPECT_EQ(lines[0].rfind("window (M agent-steps)", 0), 0u) << lines[0];
-  EXPECT_EQ(lines[3].rfind("0.0075-0.01 (to 0.008)", 0), 0u) << lines[3];
+  EXPECT_EQ(lines[3].rfind("0.0075-0.0100 (to 0.00800)", 0), 0u) << lines[3];
+  EXPECT_NE(lines[2].find(" -"), std::string::npos) << "no seeker_approach in that window: " << lines[2];
   EXPECT_NE(lines[1].find("-2.00"), std::string::npos) << lines[1];
   EXPECT_THROW(detector_windows(read_metrics_jsonl(text), 0), std::invalid_argument);
+}
+
+// Rows that finished no episode (or do not say) count as iterations and add no statistic; a damaged
+// agent_steps (beyond any run) is skipped rather than overflowing.
+TEST(Stages, DetectorWindowsSkipRowsWithoutEpisodesAndDamagedCounts) {
+  const std::string text =
+      "{\"iteration\": 1, \"agent_steps\": 100, \"episodes\": 0, \"hider_reward\": 50}\n"
+      "{\"iteration\": 2, \"agent_steps\": 200, \"hider_reward\": 60}\n"
+      "{\"iteration\": 3, \"agent_steps\": 300, \"episodes\": 4, \"hider_reward\": 2}\n"
+      "{\"iteration\": 4, \"agent_steps\": 1e19, \"episodes\": 4, \"hider_reward\": 9}\n";
+  const DetectorTable t = detector_windows(read_metrics_jsonl(text), 1000);
+  ASSERT_EQ(t.windows.size(), 1u);
+  EXPECT_EQ(t.windows[0].iterations, 3);
+  EXPECT_EQ(t.windows[0].episodes, 4);
+  EXPECT_DOUBLE_EQ(t.windows[0].mean[0], 2.0);
+}
+
+// Every column reads a key that metrics.jsonl has: an episode statistic, or the return, entropy or door
+// count.
+TEST(Stages, DetectorColumnsNameMetricsKeys) {
+  std::vector<std::string> keys = {"hider_reward", "entropy", "num_doors"};
+#define HNS_STAGES_TEST_KEY(name, doc) keys.push_back(#name);
+  HNS_EPISODE_STATS(HNS_STAGES_TEST_KEY)
+#undef HNS_STAGES_TEST_KEY
+  auto known = [&](const char* k) { return std::find(keys.begin(), keys.end(), k) != keys.end(); };
+  for (const DetectorColumn& c : DetectorTable::columns()) {
+    EXPECT_TRUE(known(c.key)) << c.key;
+    if (c.denominator != nullptr) EXPECT_TRUE(known(c.denominator)) << c.denominator;
+  }
 }
 
 }  // namespace

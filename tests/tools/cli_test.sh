@@ -260,16 +260,23 @@ else
   failed=$((failed + 1))
   echo "FAIL: play --checkpoint + report"; cat "$tmp/log"
 fi
-# report --windows: the detectors per window of agent-steps, with or without the page; nothing asked: exit 2.
+# report --windows: the detectors per window of agent-steps, alone (no file written) or beside the page;
+# nothing asked, a window out of range or a title without a page: exit 2.
+before="$(ls "$tmp" | sort)"
 if "$hns" report "$tmp/run" --windows 0.001 >"$tmp/log" 2>&1 &&
-   grep -q "^window (M agent-steps)  iterations" "$tmp/log" && grep -qE "^[0-9.]+-[0-9.]+ \(to " "$tmp/log"; then
+   grep -q "^window (M agent-steps) *iterations" "$tmp/log" && grep -qE "^[0-9.]+-[0-9.]+ \(to " "$tmp/log" &&
+   [ "$(ls "$tmp" | sort)" = "$before" ] &&
+   "$hns" report "$tmp/run" --windows 1 --html "$tmp/both.html" >"$tmp/log2" 2>&1 &&
+   grep -q 'id="hns-status"' "$tmp/both.html" && grep -qE "^0-1 \(to " "$tmp/log2"; then
   passed=$((passed + 1))
 else
   failed=$((failed + 1))
-  echo "FAIL: report --windows"; cat "$tmp/log"
+  echo "FAIL: report --windows"; cat "$tmp/log" "$tmp/log2"
 fi
 expect_fail 2 "nothing to do" report "$tmp/run"
-expect_fail 2 "windows" report "$tmp/run" --windows 0
+expect_fail 2 "not in range" report "$tmp/run" --windows 0
+expect_fail 2 "not in range" report "$tmp/run" --windows -5
+expect_fail 2 "requires --html" report "$tmp/run" --windows 1 --title T
 expect_fail 2 "trained on scene 'lockbox'" play --checkpoint "$tmp/run/checkpoint.bin" --scene full --out "$tmp/p2.traj"
 # hns export: a run folder's policy without its optimiser; it plays the same episodes (same trajectory bytes
 # but the file's policy name), writes the replay page in the same command, starts a run, and cannot resume one.
