@@ -7,9 +7,10 @@
 //   parameter base pointer; backward() takes it and the gradient base pointer, and *accumulates* into the
 //   gradients (so a caller can sum several chunks into one buffer in a fixed order).
 // - Kernels are stored [in, out] row-major (TensorFlow's layout): y = x W + b. Matrix products go through
-// Eigen.
+//   nn/products.hpp (Eigen's GEMM in fp32, nn/bf16_gemm.hpp in bf16).
 // - All activations live in caller-owned memory (views, or a layer's Buffers bound from an Arena once per
-//   batch shape); nothing here allocates, except what Eigen's GEMM may use internally for packing.
+//   batch shape); nothing here allocates (the products' packing buffers are per-thread scratch that grows
+//   to the largest shape once).
 // - backward() may overwrite its incoming gradient (dy) with the pre-activation gradient.
 #pragma once
 

@@ -3,6 +3,7 @@
 #include <oneapi/tbb/parallel_for.h>
 
 #include <algorithm>
+#include <type_traits>
 
 namespace hns::nn {
 namespace {
@@ -18,17 +19,83 @@ size_t align_elems(size_t n) {
   return (n + kAlignElems - 1) / kAlignElems * kAlignElems;
 }
 
-// Per-thread bf16 scratch for the activations of one product (A, and B for a weight gradient).
+// Per-thread scratch: bf16 activations of one product (A, and B for a weight gradient), and the fp32
+// products' buffers.
 struct Scratch {
   FloatBuffer a, b;
-  FloatBuffer panel;  // fp32: a padded panel of the rows after the last whole one, x then y
-  static bf16_t* take(FloatBuffer& buf, size_t elems) {
-    const size_t floats = (elems + 1) / 2;
+  FloatBuffer panel;           // fp32: a padded panel of the rows after the last whole one, x then y
+  FloatBuffer pack_a, pack_b;  // fp32: Eigen's packed blocks of its two operands
+  static float* take_floats(FloatBuffer& buf, size_t floats) {
     if (buf.size() < floats) buf.resize(floats);
-    return reinterpret_cast<bf16_t*>(buf.data());
+    return buf.data();
+  }
+  static bf16_t* take(FloatBuffer& buf, size_t elems) {
+    return reinterpret_cast<bf16_t*>(take_floats(buf, (elems + 1) / 2));
   }
 };
 thread_local Scratch scratch;
+
+// ---- fp32: Eigen's GEMM without its allocation
+//
+// Eigen 3.4 (GeneralMatrixMatrix.h) packs blocks of both operands into two buffers that it takes at every
+// product's start and gives back at its end: from the stack up to 128 KB, from the heap beyond. The C
+// library returns large freed blocks to the system, so the next product meets fresh pages and faults on
+// every 4 KB of them: at one thread, fp32 `paper` training spent about 30 % of its time in such faults
+// (nn/README.md). product() below
+// is `dst.noalias() (+)= lhs * rhs` as Eigen evaluates it, with the same kernels, blocking and order of sums
+// (so the same bits), but with the two buffers in this thread's scratch, which grows to the largest
+// product once. It rests on Eigen 3.4's internals, as matmul_fp32's row panels do; the products' test
+// compares it with the expressions bit for bit.
+namespace ei = Eigen::internal;
+using Index = Eigen::Index;
+
+// Eigen's blocking of a float product into a row-major destination (gemm_blocking_space<RowMajor, float,
+// float, Dynamic, Dynamic, Dynamic, 1, false> constructed as generic_product_impl constructs it: the same
+// sizes), its buffers in the scratch. Eigen computes a row-major product transposed: its rows are the
+// destination's columns.
+class ScratchBlocking : public ei::level3_blocking<float, float> {
+ public:
+  ScratchBlocking(Index rows, Index cols, Index depth) {
+    m_mc = cols;
+    m_nc = rows;
+    m_kc = depth;
+    ei::computeProductBlockingSizes<float, float, 1, Index>(m_kc, m_mc, m_nc, 1);
+    m_blockA = Scratch::take_floats(scratch.pack_a, static_cast<size_t>(m_mc * m_kc));
+    m_blockB = Scratch::take_floats(scratch.pack_b, static_cast<size_t>(m_kc * m_nc));
+  }
+};
+
+template <class X>
+constexpr int storage_order() {
+  return (std::remove_cvref_t<X>::Flags & Eigen::RowMajorBit) != 0 ? Eigen::RowMajor : Eigen::ColMajor;
+}
+
+// dst (+)= lhs rhs for plain float maps (or their transposes) and a row-major dst with unit inner stride.
+template <class Dst, class Lhs, class Rhs>
+void product(Dst&& dst, const Lhs& lhs, const Rhs& rhs, bool accumulate) {
+  const Index rows = dst.rows(), cols = dst.cols(), depth = lhs.cols();
+  // Where Eigen would not run its GEMM (coefficient by coefficient below its size threshold, matrix times
+  // vector for one row or column, nothing for an empty product), the expression, which allocates nothing.
+  if (rows + cols + depth < EIGEN_GEMM_TO_COEFFBASED_THRESHOLD || rows <= 1 || cols <= 1 || depth == 0) {
+    if (accumulate) {
+      dst.noalias() += lhs * rhs;
+    } else {
+      dst.noalias() = lhs * rhs;
+    }
+    return;
+  }
+  static_assert(storage_order<Dst>() == Eigen::RowMajor &&
+                std::remove_cvref_t<Dst>::InnerStrideAtCompileTime == 1);
+  const auto& l = ei::blas_traits<Lhs>::extract(lhs);
+  const auto& r = ei::blas_traits<Rhs>::extract(rhs);
+  if (!accumulate) dst.setZero();  // (as Eigen's evalTo: zeros, then the products added)
+  ScratchBlocking blocking(rows, cols, depth);
+  ei::general_matrix_matrix_product<Index, float, storage_order<decltype(l)>(), false, float,
+                                    storage_order<decltype(r)>(), false, Eigen::RowMajor,
+                                    1>::run(rows, cols, depth, l.data(), l.outerStride(), r.data(),
+                                            r.outerStride(), dst.data(), 1, dst.outerStride(), 1.0f,
+                                            blocking);
+}
 
 }  // namespace
 
@@ -87,14 +154,9 @@ constexpr int kRowPanel = 8;
 void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {
   const ConstWeights wm(w, x.cols, y.cols);
   const int whole = x.rows / kRowPanel * kRowPanel;
-  if (whole > 0) {
-    Mat top(y.data, whole, y.cols, y.stride);
-    if (accumulate) {
-      top.map().noalias() += CMat(x.data, whole, x.cols, x.stride).map() * wm;
-    } else {
-      top.map().noalias() = CMat(x.data, whole, x.cols, x.stride).map() * wm;
-    }
-  }
+  if (whole > 0)
+    product(Mat(y.data, whole, y.cols, y.stride).map(), CMat(x.data, whole, x.cols, x.stride).map(), wm,
+            accumulate);
   const int rest = x.rows - whole;
   if (rest == 0) return;
   const size_t xs = static_cast<size_t>(kRowPanel) * x.cols, ys = static_cast<size_t>(kRowPanel) * y.cols;
@@ -103,15 +165,13 @@ void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {
   float* yp = xp + xs;
   std::fill(xp, xp + xs, 0.0f);
   for (int r = 0; r < rest; ++r) std::copy_n(x.row(whole + r), x.cols, xp + static_cast<size_t>(r) * x.cols);
-  Mat panel(yp, kRowPanel, y.cols, y.cols);
   if (accumulate) {
     std::fill(yp, yp + ys, 0.0f);
     for (int r = 0; r < rest; ++r)
       std::copy_n(y.row(whole + r), y.cols, yp + static_cast<size_t>(r) * y.cols);
-    panel.map().noalias() += CMat(xp, kRowPanel, x.cols, x.cols).map() * wm;
-  } else {
-    panel.map().noalias() = CMat(xp, kRowPanel, x.cols, x.cols).map() * wm;
   }
+  product(Mat(yp, kRowPanel, y.cols, y.cols).map(), CMat(xp, kRowPanel, x.cols, x.cols).map(), wm,
+          accumulate);
   for (int r = 0; r < rest; ++r) std::copy_n(yp + static_cast<size_t>(r) * y.cols, y.cols, y.row(whole + r));
 }
 
@@ -131,14 +191,8 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
 }
 
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate) {
-  if (!p.bf16()) {
-    if (accumulate) {
-      dx.map().noalias() += dz.map() * ConstWeights(w, dx.cols, dz.cols).transpose();
-    } else {
-      dx.map().noalias() = dz.map() * ConstWeights(w, dx.cols, dz.cols).transpose();
-    }
-    return;
-  }
+  if (!p.bf16())
+    return product(dx.map(), dz.map(), ConstWeights(w, dx.cols, dz.cols).transpose(), accumulate);
   HNS_NN_CHECK(p.packed->has_transposed(), "bf16 backward without transposed weights packed");
   const ProductMatrix& m = p.packed->info(id);
   HNS_NN_CHECK(m.rows == dx.cols && m.cols == dz.cols && dz.rows == dx.rows, "bf16 product of another shape");
@@ -151,11 +205,7 @@ void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool ac
 namespace {
 
 void matmul_grad_fp32(CMat x, CMat dz, float* dw, bool accumulate) {
-  if (accumulate) {
-    WeightsMap(dw, x.cols, dz.cols).noalias() += x.map().transpose() * dz.map();
-  } else {
-    WeightsMap(dw, x.cols, dz.cols).noalias() = x.map().transpose() * dz.map();
-  }
+  product(WeightsMap(dw, x.cols, dz.cols), x.map().transpose(), dz.map(), accumulate);
 }
 
 // dw (+)= x^T dz in bf16 with dz already packed (b): A = x^T [x.cols, rows], the sum runs over the rows, in

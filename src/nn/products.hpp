@@ -2,7 +2,8 @@
 //
 // A layer registers each matrix it multiplies by in the ParamLayout (ParamLayout::add_product) and calls
 // matmul / matmul_t / matmul_grad with the float matrix and that registration. With fp32 (Weights::packed
-// null) these are the Eigen expressions the layers always used, bit for bit. With bf16 they run
+// null) these are the Eigen expressions the layers always used, bit for bit, with Eigen's packing buffers
+// in per-thread scratch instead of the heap (products.cpp says why). With bf16 they run
 // nn/bf16_gemm.hpp: the weights from PackedWeights (packed once per weight version by ActorCritic), the
 // activations converted per call into per-thread scratch (which grows to the largest shape once and is then
 // reused: no allocation in steady state).

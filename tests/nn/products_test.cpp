@@ -1,0 +1,133 @@
+// The layers' float products (nn/products.hpp with fp32 weights): the same bits as the Eigen expressions
+// they stand for, and no memory taken per call once a thread has met its largest shape.
+#include <gtest/gtest.h>
+#include <malloc.h>
+#include <sys/resource.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "nn/products.hpp"
+
+namespace hns::nn {
+namespace {
+
+using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Map = Eigen::Map<const RowMat>;
+
+std::vector<float> random_floats(size_t n, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
+  std::vector<float> v(n);
+  for (float& x : v) x = u(rng);
+  return v;
+}
+
+bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+struct Shape {
+  int rows, in, out;
+};
+// Rows, inputs, outputs: below Eigen's coefficient-wise threshold, one row or one output (its matrix-vector
+// path), the networks' shapes (an odd 281, a 1,120-deep attention input), and ones deep or wide enough for
+// several of Eigen's depth and column blocks.
+const Shape kShapes[] = {{3, 5, 7},       {1, 64, 128},    {120, 128, 1},    {17, 33, 9},    {160, 64, 281},
+                         {64, 1120, 128}, {256, 160, 512}, {1024, 1536, 96}, {40, 3000, 700}};
+
+// Every operand at a row stride wider than its columns, as the layers' views into wider tensors are. matmul
+// pads the rows after its last whole 8-row panel with zero rows (products.cpp says why): its reference is
+// the expression over x padded so.
+TEST(NnProducts, FloatProductsEqualTheirEigenExpressionsBitForBit) {
+  for (const Shape& s : kShapes) {
+    SCOPED_TRACE(::testing::Message() << s.rows << " x " << s.in << " x " << s.out);
+    const int xs = s.in + 3, ys = s.out + 5;  // row strides
+    const std::vector<float> w = random_floats(size_t(s.in) * s.out, 1);
+    const std::vector<float> x = random_floats(size_t(s.rows) * xs, 2);
+    const std::vector<float> dz = random_floats(size_t(s.rows) * ys, 3);
+    const std::vector<float> start_y = random_floats(size_t(s.rows) * ys, 4);
+    const std::vector<float> start_dx = random_floats(size_t(s.rows) * xs, 5);
+    const std::vector<float> start_dw = random_floats(size_t(s.in) * s.out, 6);
+    const CMat xv(x.data(), s.rows, s.in, xs), dzv(dz.data(), s.rows, s.out, ys);
+    for (const bool acc : {false, true}) {
+      std::vector<float> y = start_y;
+      matmul(Weights(w.data()), 0, w.data(), xv, Mat(y.data(), s.rows, s.out, ys), acc);
+      const int padded = (s.rows + 7) / 8 * 8;
+      std::vector<float> x_pad(size_t(padded) * xs, 0.0f), y_ref(size_t(padded) * ys, 0.0f);
+      std::copy(x.begin(), x.end(), x_pad.begin());
+      std::copy(start_y.begin(), start_y.end(), y_ref.begin());
+      auto yr = Mat(y_ref.data(), padded, s.out, ys).map();
+      if (acc) {
+        yr.noalias() += CMat(x_pad.data(), padded, s.in, xs).map() * Map(w.data(), s.in, s.out);
+      } else {
+        yr.noalias() = CMat(x_pad.data(), padded, s.in, xs).map() * Map(w.data(), s.in, s.out);
+      }
+      y_ref.resize(y.size());
+      EXPECT_TRUE(same_bits(y, y_ref)) << "matmul, accumulate " << acc;
+
+      std::vector<float> dx = start_dx, dx_ref = start_dx;
+      matmul_t(Weights(w.data()), 0, w.data(), dzv, Mat(dx.data(), s.rows, s.in, xs), acc);
+      auto dr = Mat(dx_ref.data(), s.rows, s.in, xs).map();
+      if (acc) {
+        dr.noalias() += dzv.map() * Map(w.data(), s.in, s.out).transpose();
+      } else {
+        dr.noalias() = dzv.map() * Map(w.data(), s.in, s.out).transpose();
+      }
+      EXPECT_TRUE(same_bits(dx, dx_ref)) << "matmul_t, accumulate " << acc;
+
+      std::vector<float> dw = start_dw, dw_ref = start_dw;
+      matmul_grad(Weights(w.data()), xv, dzv, dw.data(), acc);
+      auto gr = Eigen::Map<RowMat>(dw_ref.data(), s.in, s.out);
+      if (acc) {
+        gr.noalias() += xv.map().transpose() * dzv.map();
+      } else {
+        gr.noalias() = xv.map().transpose() * dzv.map();
+      }
+      EXPECT_TRUE(same_bits(dw, dw_ref)) << "matmul_grad, accumulate " << acc;
+    }
+  }
+}
+
+long minor_faults_of_this_thread() {
+  rusage u{};
+  getrusage(RUSAGE_THREAD, &u);
+  return u.ru_minflt;
+}
+
+// A training iteration runs thousands of products; memory taken and given back per product costs a page
+// fault per 4 KB touched (Eigen's packing buffers, freed at every product's end, cost a 1-thread `paper`
+// run a quarter of its time that way). Here the C library is made to return every block of 128 KB or more
+// to the system at once (an explicit mmap threshold also stops glibc from raising it as a program runs):
+// a product that took its buffers from the heap would fault on them at every call.
+TEST(NnProducts, FloatProductsTouchNoNewMemoryOnceWarm) {
+  ASSERT_EQ(mallopt(M_MMAP_THRESHOLD, 128 * 1024), 1);
+  const Shape shapes[] = {{2560, 256, 1024}, {1120, 128, 256}, {160, 1024, 256}, {600, 1024, 1024}};
+  struct Data {
+    std::vector<float> w, x, y, dw;
+  };
+  std::vector<Data> data;
+  for (const Shape& s : shapes)
+    data.push_back({random_floats(size_t(s.in) * s.out, 1), random_floats(size_t(s.rows) * s.in, 2),
+                    random_floats(size_t(s.rows) * s.out, 3), std::vector<float>(size_t(s.in) * s.out)});
+  auto run_all = [&] {
+    for (size_t i = 0; i < data.size(); ++i) {
+      const Shape& s = shapes[i];
+      Data& d = data[i];
+      const CMat x(d.x.data(), s.rows, s.in), y(d.y.data(), s.rows, s.out);
+      matmul(Weights(d.w.data()), 0, d.w.data(), x, Mat(d.y.data(), s.rows, s.out), false);
+      matmul_t(Weights(d.w.data()), 0, d.w.data(), y, Mat(d.x.data(), s.rows, s.in), false);
+      matmul_grad(Weights(d.w.data()), x, y, d.dw.data(), false);
+    }
+  };
+  run_all();  // the thread's scratch grows to the largest shape here
+  const long before = minor_faults_of_this_thread();
+  for (int rep = 0; rep < 3; ++rep) run_all();
+  EXPECT_EQ(minor_faults_of_this_thread() - before, 0);
+}
+
+}  // namespace
+}  // namespace hns::nn
