@@ -100,7 +100,14 @@ struct ALayout {
 // kRows rows x kVecs vectors of C from A's rows and one panel of B (ldb: the panel's width in columns).
 template <int kRows, int kVecs>
 HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb, int k2, float* c,
-                          ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+                          ptrdiff_t ldc, bool accumulate, __mmask16 last_mask, const float* next_c) {
+  if (accumulate) {
+    // The next tile's C into L1 while this one computes (prefetches never fault: next_c may point past a
+    // smaller tile or past C's end).
+    for (int m = 0; m < kRowsPerTile; ++m)
+      for (int v = 0; v < 4; ++v)
+        _mm_prefetch(reinterpret_cast<const char*>(next_c + m * ldc + v * kVecCols), _MM_HINT_T0);
+  }
   __m512 acc[kRows][kVecs];
   for (int m = 0; m < kRows; ++m)
     for (int v = 0; v < kVecs; ++v) {
@@ -127,33 +134,35 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb
 
 template <int kRows>
 HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2, float* c,
-                               ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+                               ptrdiff_t ldc, bool accumulate, __mmask16 last_mask, const float* next_c) {
   const int ldb = vecs * kVecCols;
   switch (vecs) {
     case 4:
-      return tile<kRows, 4>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+      return tile<kRows, 4>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
     case 3:
-      return tile<kRows, 3>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+      return tile<kRows, 3>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
     case 2:
-      return tile<kRows, 2>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+      return tile<kRows, 2>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
     default:
-      return tile<kRows, 1>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask);
+      return tile<kRows, 1>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
   }
 }
 
 // The last rows % kRowsPerTile rows in one pass of tiles of that height.
 template <int kRows = kRowsPerTile - 1>
 HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2,
-                               float* c, ptrdiff_t ldc, bool accumulate, __mmask16 last_mask) {
+                               float* c, ptrdiff_t ldc, bool accumulate, __mmask16 last_mask,
+                               const float* next_c) {
   if constexpr (kRows > 0) {
-    if (rows == kRows) return tile_cols<kRows>(vecs, a, lda, b, k2, c, ldc, accumulate, last_mask);
-    tail_rows<kRows - 1>(rows, vecs, a, lda, b, k2, c, ldc, accumulate, last_mask);
+    if (rows == kRows) return tile_cols<kRows>(vecs, a, lda, b, k2, c, ldc, accumulate, last_mask, next_c);
+    tail_rows<kRows - 1>(rows, vecs, a, lda, b, k2, c, ldc, accumulate, last_mask, next_c);
   }
 }
 
-// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0.
+// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0; next_c: where the tile
+// after this one starts in C.
 HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, const bf16_t* b, int k2, int n,
-                                int n0, float* c, ptrdiff_t ldc, bool accumulate) {
+                                int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* next_c) {
   const int width = panel_width(n, n0);
   const int vecs = width / kVecCols;
   const int last_cols = n - n0 - (vecs - 1) * kVecCols;  // columns of the panel's last vector
@@ -163,23 +172,28 @@ HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, cons
   const bf16_t* am = a + m * 2 * lda.row;
   float* cm = c + m * ldc + n0;
   if (h == kRowsPerTile)
-    return tile_cols<kRowsPerTile>(vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask);
-  tail_rows(h, vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask);
+    return tile_cols<kRowsPerTile>(vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask, next_c);
+  tail_rows(h, vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask, next_c);
 }
 
 HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
                                  float* c, ptrdiff_t ldc, bool accumulate) {
   const int k2 = pairs(k);  // (B's pairs per panel: no padding for this kernel)
   // Every element's sum is the same in either order of the tiles below; only the speed differs.
+  auto at = [&](int m, int n0) -> const float* { return c + m * ldc + n0; };
   if (rows_outer(accumulate, rows, k2, n)) {
     for (int m = 0; m < rows; m += kRowsPerTile)
-      for (int n0 = 0; n0 < n; n0 += kPanel)
-        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate);
+      for (int n0 = 0; n0 < n; n0 += kPanel) {
+        const float* next = n0 + kPanel < n ? at(m, n0 + kPanel) : at(m + kRowsPerTile, 0);
+        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, next);
+      }
     return;
   }
   for (int n0 = 0; n0 < n; n0 += kPanel)
-    for (int m = 0; m < rows; m += kRowsPerTile)
-      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate);
+    for (int m = 0; m < rows; m += kRowsPerTile) {
+      const float* next = m + kRowsPerTile < rows ? at(m + kRowsPerTile, n0) : at(0, n0 + kPanel);
+      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, next);
+    }
 }
 
 // ---- packing
