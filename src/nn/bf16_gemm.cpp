@@ -101,12 +101,14 @@ struct ALayout {
 template <int kRows, int kVecs>
 HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb, int k2, float* c,
                           ptrdiff_t ldc, bool accumulate, __mmask16 last_mask, const float* next_c) {
-  if (accumulate) {
-    // The next tile's C into L1 while this one computes (prefetches never fault: next_c may point past a
-    // smaller tile or past C's end).
+  if (accumulate && next_c != nullptr) {
+    // The next tile's C into L1 while this one computes. The addresses are integers (a smaller next tile
+    // leaves some of them past C's end, where a pointer may not go; a prefetch never faults).
+    const uintptr_t next = reinterpret_cast<uintptr_t>(next_c);
     for (int m = 0; m < kRowsPerTile; ++m)
       for (int v = 0; v < 4; ++v)
-        _mm_prefetch(reinterpret_cast<const char*>(next_c + m * ldc + v * kVecCols), _MM_HINT_T0);
+        _mm_prefetch(reinterpret_cast<const char*>(next + sizeof(float) * size_t(m * ldc + v * kVecCols)),
+                     _MM_HINT_T0);
   }
   __m512 acc[kRows][kVecs];
   for (int m = 0; m < kRows; ++m)
@@ -160,7 +162,7 @@ HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda,
 }
 
 // Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0; next_c: where the tile
-// after this one starts in C.
+// after this one starts in C (null: none).
 HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, const bf16_t* b, int k2, int n,
                                 int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* next_c) {
   const int width = panel_width(n, n0);
@@ -180,7 +182,8 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
                                  float* c, ptrdiff_t ldc, bool accumulate) {
   const int k2 = pairs(k);  // (B's pairs per panel: no padding for this kernel)
   // Every element's sum is the same in either order of the tiles below; only the speed differs.
-  auto at = [&](int m, int n0) -> const float* { return c + m * ldc + n0; };
+  // Where the tile at (m, n0) starts; null past the last one.
+  auto at = [&](int m, int n0) -> const float* { return m < rows && n0 < n ? c + m * ldc + n0 : nullptr; };
   if (rows_outer(accumulate, rows, k2, n)) {
     for (int m = 0; m < rows; m += kRowsPerTile)
       for (int n0 = 0; n0 < n; n0 += kPanel) {

@@ -40,12 +40,18 @@ thread_local Scratch scratch;
 // Eigen 3.4 (GeneralMatrixMatrix.h) packs blocks of both operands into two buffers that it takes at every
 // product's start and gives back at its end: from the stack up to 128 KB, from the heap beyond. The C
 // library returns large freed blocks to the system, so the next product meets fresh pages and faults on
-// every 4 KB of them: at one thread, fp32 `paper` training spent about 30 % of its time in such faults
-// (nn/README.md). product() below
-// is `dst.noalias() (+)= lhs * rhs` as Eigen evaluates it, with the same kernels, blocking and order of sums
-// (so the same bits), but with the two buffers in this thread's scratch, which grows to the largest
-// product once. It rests on Eigen 3.4's internals, as matmul_fp32's row panels do; the products' test
+// every 4 KB of them: at one thread, fp32 `paper` training ran 1.43x faster without them (nn/README.md).
+// product() below is `dst.noalias() (+)= lhs * rhs` as Eigen evaluates it, with the same kernels, blocking
+// and order of sums (so the same bits), but with the two buffers in this thread's scratch, which grows to the
+// largest product once. It rests on Eigen 3.4's internals, as matmul_fp32's row panels do; the products' test
 // compares it with the expressions bit for bit.
+#if !EIGEN_VERSION_AT_LEAST(3, 4, 0) || EIGEN_VERSION_AT_LEAST(3, 5, 0)
+#error "products.cpp follows Eigen 3.4's GEMM internals: check them against this Eigen's"
+#endif
+#if defined(EIGEN_HAS_OPENMP) || defined(EIGEN_USE_BLAS)
+#error \
+    "products.cpp follows Eigen's sequential, built-in GEMM: build without OpenMP and without EIGEN_USE_BLAS"
+#endif
 namespace ei = Eigen::internal;
 using Index = Eigen::Index;
 

@@ -33,11 +33,12 @@ bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
 struct Shape {
   int rows, in, out;
 };
-// Rows, inputs, outputs: below Eigen's coefficient-wise threshold, one row or one output (its matrix-vector
-// path), the networks' shapes (an odd 281, a 1,120-deep attention input), and ones deep or wide enough for
-// several of Eigen's depth and column blocks.
-const Shape kShapes[] = {{3, 5, 7},       {1, 64, 128},    {120, 128, 1},    {17, 33, 9},    {160, 64, 281},
-                         {64, 1120, 128}, {256, 160, 512}, {1024, 1536, 96}, {40, 3000, 700}};
+// Rows, inputs, outputs: below Eigen's coefficient-wise threshold and at it (3 + 8 + 9 = 20 for matmul_t and
+// matmul_grad), one row (matmul_t's matrix-vector path; matmul pads it to 8) or one output (matrix-vector),
+// the networks' shapes (an odd 281, a 1,120-deep attention input), and ones deep or wide enough for several
+// of Eigen's depth and column blocks.
+const Shape kShapes[] = {{3, 5, 7},      {3, 8, 9},       {1, 64, 128},    {120, 128, 1},    {17, 33, 9},
+                         {160, 64, 281}, {64, 1120, 128}, {256, 160, 512}, {1024, 1536, 96}, {40, 3000, 700}};
 
 // Every operand at a row stride wider than its columns, as the layers' views into wider tensors are. matmul
 // pads the rows after its last whole 8-row panel with zero rows (products.cpp says why): its reference is
@@ -99,12 +100,14 @@ long minor_faults_of_this_thread() {
 }
 
 // A training iteration runs thousands of products; memory taken and given back per product costs a page
-// fault per 4 KB touched (Eigen's packing buffers, freed at every product's end, cost a 1-thread `paper`
-// run a quarter of its time that way). Here the C library is made to return every block of 128 KB or more
-// to the system at once (an explicit mmap threshold also stops glibc from raising it as a program runs):
-// a product that took its buffers from the heap would fault on them at every call.
+// fault per 4 KB touched (Eigen's packing buffers, freed at every product's end, cost a one-thread `paper`
+// run about 30 % of its time that way: nn/README.md). Here the C library is made to return every block of
+// 128 KB or more to the system at once (an explicit mmap threshold also stops glibc from raising it as a
+// program runs; under AddressSanitizer, whose allocator ignores the call, large blocks are mapped and
+// unmapped anyway): a product that took its buffers from the heap would fault on them at every call, some
+// 7,500 times here. A few faults are allowed for what a loaded host does to any thread's pages.
 TEST(NnProducts, FloatProductsTouchNoNewMemoryOnceWarm) {
-  ASSERT_EQ(mallopt(M_MMAP_THRESHOLD, 128 * 1024), 1);
+  mallopt(M_MMAP_THRESHOLD, 128 * 1024);
   const Shape shapes[] = {{2560, 256, 1024}, {1120, 128, 256}, {160, 1024, 256}, {600, 1024, 1024}};
   struct Data {
     std::vector<float> w, x, y, dw;
@@ -126,7 +129,7 @@ TEST(NnProducts, FloatProductsTouchNoNewMemoryOnceWarm) {
   run_all();  // the thread's scratch grows to the largest shape here
   const long before = minor_faults_of_this_thread();
   for (int rep = 0; rep < 3; ++rep) run_all();
-  EXPECT_EQ(minor_faults_of_this_thread() - before, 0);
+  EXPECT_LT(minor_faults_of_this_thread() - before, 50);
 }
 
 }  // namespace
