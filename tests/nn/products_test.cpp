@@ -7,24 +7,16 @@
 #include <Eigen/Core>
 #include <algorithm>
 #include <cstring>
-#include <random>
 #include <vector>
 
 #include "nn/products.hpp"
+#include "test_util.hpp"
 
 namespace hns::nn {
 namespace {
 
 using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using Map = Eigen::Map<const RowMat>;
-
-std::vector<float> random_floats(size_t n, uint32_t seed) {
-  std::mt19937 rng(seed);
-  std::uniform_real_distribution<float> u(-1.0f, 1.0f);
-  std::vector<float> v(n);
-  for (float& x : v) x = u(rng);
-  return v;
-}
 
 bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
@@ -47,12 +39,12 @@ TEST(NnProducts, FloatProductsEqualTheirEigenExpressionsBitForBit) {
   for (const Shape& s : kShapes) {
     SCOPED_TRACE(::testing::Message() << s.rows << " x " << s.in << " x " << s.out);
     const int xs = s.in + 3, ys = s.out + 5;  // row strides
-    const std::vector<float> w = random_floats(size_t(s.in) * s.out, 1);
-    const std::vector<float> x = random_floats(size_t(s.rows) * xs, 2);
-    const std::vector<float> dz = random_floats(size_t(s.rows) * ys, 3);
-    const std::vector<float> start_y = random_floats(size_t(s.rows) * ys, 4);
-    const std::vector<float> start_dx = random_floats(size_t(s.rows) * xs, 5);
-    const std::vector<float> start_dw = random_floats(size_t(s.in) * s.out, 6);
+    const std::vector<float> w = testing::random_vector(size_t(s.in) * s.out, 1);
+    const std::vector<float> x = testing::random_vector(size_t(s.rows) * xs, 2);
+    const std::vector<float> dz = testing::random_vector(size_t(s.rows) * ys, 3);
+    const std::vector<float> start_y = testing::random_vector(size_t(s.rows) * ys, 4);
+    const std::vector<float> start_dx = testing::random_vector(size_t(s.rows) * xs, 5);
+    const std::vector<float> start_dw = testing::random_vector(size_t(s.in) * s.out, 6);
     const CMat xv(x.data(), s.rows, s.in, xs), dzv(dz.data(), s.rows, s.out, ys);
     for (const bool acc : {false, true}) {
       std::vector<float> y = start_y;
@@ -114,8 +106,9 @@ TEST(NnProducts, FloatProductsTouchNoNewMemoryOnceWarm) {
   };
   std::vector<Data> data;
   for (const Shape& s : shapes)
-    data.push_back({random_floats(size_t(s.in) * s.out, 1), random_floats(size_t(s.rows) * s.in, 2),
-                    random_floats(size_t(s.rows) * s.out, 3), std::vector<float>(size_t(s.in) * s.out)});
+    data.push_back(
+        {testing::random_vector(size_t(s.in) * s.out, 1), testing::random_vector(size_t(s.rows) * s.in, 2),
+         testing::random_vector(size_t(s.rows) * s.out, 3), std::vector<float>(size_t(s.in) * s.out)});
   auto run_all = [&] {
     for (size_t i = 0; i < data.size(); ++i) {
       const Shape& s = shapes[i];
