@@ -71,7 +71,7 @@ enum PrepStat {
 // Slots of the stat_run field: the seeking phase's running statistics. The closest a ramp came to an
 // interior wall (m, starts at 6); 1 once a seeker above a wall saw a hider; steps in which a hider was seen;
 // seeking-phase steps; the sum and count of the seekers' speeds towards their nearest hider (m/s); steps in
-// which a seeker stood on a sliding box; food units the hiders ate.
+// which a seeker stood on a sliding box; food units the hiders ate; 1 once a seeker stood above a wall.
 enum RunStat {
   kRampWallDist,
   kHighSeen,
@@ -81,6 +81,7 @@ enum RunStat {
   kApproachCount,
   kSurfCount,
   kFoodEaten,
+  kSeekerHigh,
   kNumRunStats
 };
 
@@ -195,7 +196,7 @@ struct Layout {
   X(float, agent_pos_start, L.max_agents * 3, "agent centre at reset, m (envs x A x 3)")                    \
   X(float, ramp_pos_start, L.max_ramps * 3, "ramp centre at reset, m (envs x R x 3)")                       \
   X(float, stat_prep, Layout::kPrepStats, "measured when prep ends, slots PrepStat (envs x 9)")             \
-  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 8)")     \
+  X(float, stat_run, Layout::kRunStats, "seeking phase's running statistics, slots RunStat (envs x 9)")     \
   X(float, episode_return, 2, "this episode's summed mean reward of hiders, of seekers (envs x 2)")         \
   /* Box-locking tasks (tasks/lock_tasks.cpp, docs/game.md §9.2). */                                       \
   X(int32_t, task_target, 1, "agent 0's target box, kTargetSpawn or kTargetNone (all locked) (envs)")       \
@@ -257,6 +258,7 @@ struct BatchState {
   X(seeker_approach, "m/s, seekers' mean horizontal speed towards their nearest hider, seeking phase")      \
   X(ramp_wall_dist, "m, closest a ramp came to an interior wall in the seeking phase (6: no such wall)")    \
   X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
+  X(seeker_high, "1 if a seeker stood higher than an interior wall in the seeking phase (seen or not)")     \
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
   X(num_door_blocked_prep, "doors covered by boxes, locked or not, at the end of the preparation phase")    \
   X(hiders_in_room_prep, "fraction of the hiders inside the quadrant room at the end of prep")              \

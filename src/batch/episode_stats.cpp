@@ -141,7 +141,10 @@ void track_seeking(EnvRef& ref, bool any_seen) {
       run[kApproachSum] += (vel[3 * sk] * (q[0] - p[0]) + vel[3 * sk + 1] * (q[1] - p[1])) / best;
       run[kApproachCount] += 1.0f;
     }
-    if (sees_hider && p[2] > kHighAgentZ) run[kHighSeen] = 1.0f;
+    if (p[2] > kHighAgentZ) {
+      run[kSeekerHigh] = 1.0f;
+      if (sees_hider) run[kHighSeen] = 1.0f;
+    }
     // Surfing: standing on a box that slides.
     for (int k = 0; k < world.num_boxes() && !surfing; ++k) {
       const size_t i = size_t(env) * L.max_boxes + k;
@@ -182,6 +185,7 @@ void record_episode(const EnvRef& ref, bool discarded, EpisodeStats& st) {
   st.seeker_approach = run[kApproachCount] > 0 ? run[kApproachSum] / run[kApproachCount] : 0.0f;
   st.ramp_wall_dist = run[kRampWallDist];
   st.seeker_high_seen = run[kHighSeen];
+  st.seeker_high = run[kSeekerHigh];
   st.ramp_in_room_prep = prep[kRampInRoom];
   st.num_door_blocked_prep = prep[kDoorsBlocked];
   st.hiders_in_room_prep = prep[kHidersInRoom];

@@ -200,6 +200,7 @@ const std::vector<DetectorColumn>& DetectorTable::columns() {
       {"sealed", "num_door_sealed_prep", "num_doors"},
       {"box_lock", "num_box_lock_prep", nullptr},
       {"ramp_lock", "num_ramp_lock_prep", nullptr},
+      {"high", "seeker_high", nullptr},
       {"high_seen", "seeker_high_seen", nullptr},
       {"ramp_room", "ramp_in_room_prep", nullptr},
       {"box_surf", "box_surf", nullptr},

@@ -218,6 +218,7 @@ TEST(StageDetectors, StagedFortWithBothDoorsSealedCountsTwo) {
   EXPECT_EQ(st.hiders_screened_prep, 1.0f) << "each beside its locked cube";
   EXPECT_EQ(st.hider_seen_frac, 0.0f) << "nobody sees into a sealed room from the floor";
   EXPECT_EQ(st.seeker_high_seen, 0.0f);
+  EXPECT_EQ(st.seeker_high, 0.0f) << "the seekers stay on the floor";
   EXPECT_EQ(st.box_surf, 0.0f);
 }
 
@@ -281,7 +282,8 @@ BatchConfig one_on_one(int horizon) {
 }
 
 // A seeker on a cube behind a 0.5 m wall sees the hider beyond it: it stood higher than a wall while a
-// hider was seen. From the floor it sees nothing.
+// hider was seen. Turned away from the hider it still stood high (seeker_high) but saw nobody from there.
+// From the floor it sees nothing and stands high nowhere.
 TEST(StageDetectors, SeekerOnABoxSeeingOverAWall) {
   BatchSim sim(one_on_one(4));
   Scene scene;
@@ -292,14 +294,23 @@ TEST(StageDetectors, SeekerOnABoxSeeingOverAWall) {
   sim.load_scene(0, scene);
   EpisodeStats st = play_episode(sim, {});
   EXPECT_EQ(st.seeker_high_seen, 1.0f);
+  EXPECT_EQ(st.seeker_high, 1.0f);
   EXPECT_EQ(st.hider_seen_frac, 1.0f);
   EXPECT_NEAR(st.ramp_wall_dist, 6.0f, 1e-6) << "no ramp: nothing came near a wall";
+  sim.load_scene(0, scene);
+  sim.mutable_world(0).set_agent_pose(1, 3.0, 3.5, 0.65, kPi);  // on the cube, its back to the wall
+  sim.resync(0);
+  st = play_episode(sim, {});
+  EXPECT_EQ(st.hider_seen_frac, 0.0f) << "the hider is behind the seeker";
+  EXPECT_EQ(st.seeker_high_seen, 0.0f);
+  EXPECT_EQ(st.seeker_high, 1.0f) << "it stood on the cube all the same";
   scene.agents[1].z = 0.15;
   scene.boxes.clear();
   scene.ramps = {Spawn{3.0, 4.0, 0.25, 0.5, 0.5, 0.5}};
   sim.load_scene(0, scene);
   st = play_episode(sim, {});
   EXPECT_EQ(st.seeker_high_seen, 0.0f);
+  EXPECT_EQ(st.seeker_high, 0.0f);
   EXPECT_EQ(st.hider_seen_frac, 0.0f);
   EXPECT_NEAR(st.ramp_wall_dist, 4.0 - 0.25 - 3.25, 0.02) << "the ramp's near edge to the wall's face";
 }
