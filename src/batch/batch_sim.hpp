@@ -258,7 +258,7 @@ struct BatchState {
   X(seeker_approach, "m/s, seekers' mean horizontal speed towards their nearest hider, seeking phase")      \
   X(ramp_wall_dist, "m, closest a ramp came to an interior wall in the seeking phase (6: no such wall)")    \
   X(seeker_high_seen, "1 if a seeker standing higher than an interior wall saw a hider")                    \
-  X(seeker_high, "1 if a seeker stood higher than an interior wall in the seeking phase (seen or not)")     \
+  X(seeker_high, "1 if a seeker stood higher than an interior wall in the seeking phase")                   \
   X(ramp_in_room_prep, "1 if a ramp's centre was inside the quadrant room at the end of prep")              \
   X(num_door_blocked_prep, "doors covered by boxes, locked or not, at the end of the preparation phase")    \
   X(hiders_in_room_prep, "fraction of the hiders inside the quadrant room at the end of prep")              \
