@@ -100,7 +100,8 @@ struct ALayout {
 // kRows rows x kVecs vectors of C from A's rows and one panel of B (ldb: the panel's width in columns).
 template <int kRows, int kVecs>
 HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb, int k2, float* c,
-                          ptrdiff_t ldc, bool accumulate, __mmask16 last_mask, const float* next_c) {
+                          ptrdiff_t ldc, bool accumulate, const float* bias, __mmask16 last_mask,
+                          const float* next_c) {
   if (accumulate && next_c != nullptr) {
     // The next tile's C into L1 while this one computes. The addresses are integers (a smaller next tile
     // leaves some of them past C's end, where a pointer may not go; a prefetch never faults).
@@ -114,7 +115,10 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb
   for (int m = 0; m < kRows; ++m)
     for (int v = 0; v < kVecs; ++v) {
       const __mmask16 mk = v == kVecs - 1 ? last_mask : static_cast<__mmask16>(0xFFFF);
-      acc[m][v] = accumulate ? _mm512_maskz_loadu_ps(mk, c + m * ldc + v * kVecCols) : _mm512_setzero_ps();
+      // The sums start from C (accumulate), from the bias (the same for every row), or from zero.
+      acc[m][v] = accumulate        ? _mm512_maskz_loadu_ps(mk, c + m * ldc + v * kVecCols)
+                  : bias != nullptr ? _mm512_maskz_loadu_ps(mk, bias + v * kVecCols)
+                                    : _mm512_setzero_ps();
     }
   const Dword* a32 = reinterpret_cast<const Dword*>(a);
   for (int p = 0; p < k2; ++p) {
@@ -136,35 +140,39 @@ HNS_BF16_INLINE void tile(const bf16_t* a, ALayout lda, const bf16_t* b, int ldb
 
 template <int kRows>
 HNS_BF16_INLINE void tile_cols(int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2, float* c,
-                               ptrdiff_t ldc, bool accumulate, __mmask16 last_mask, const float* next_c) {
+                               ptrdiff_t ldc, bool accumulate, const float* bias, __mmask16 last_mask,
+                               const float* next_c) {
   const int ldb = vecs * kVecCols;
   switch (vecs) {
     case 4:
-      return tile<kRows, 4>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
+      return tile<kRows, 4>(a, lda, b, ldb, k2, c, ldc, accumulate, bias, last_mask, next_c);
     case 3:
-      return tile<kRows, 3>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
+      return tile<kRows, 3>(a, lda, b, ldb, k2, c, ldc, accumulate, bias, last_mask, next_c);
     case 2:
-      return tile<kRows, 2>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
+      return tile<kRows, 2>(a, lda, b, ldb, k2, c, ldc, accumulate, bias, last_mask, next_c);
     default:
-      return tile<kRows, 1>(a, lda, b, ldb, k2, c, ldc, accumulate, last_mask, next_c);
+      return tile<kRows, 1>(a, lda, b, ldb, k2, c, ldc, accumulate, bias, last_mask, next_c);
   }
 }
 
 // The last rows % kRowsPerTile rows in one pass of tiles of that height.
 template <int kRows = kRowsPerTile - 1>
 HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda, const bf16_t* b, int k2,
-                               float* c, ptrdiff_t ldc, bool accumulate, __mmask16 last_mask,
-                               const float* next_c) {
+                               float* c, ptrdiff_t ldc, bool accumulate, const float* bias,
+                               __mmask16 last_mask, const float* next_c) {
   if constexpr (kRows > 0) {
-    if (rows == kRows) return tile_cols<kRows>(vecs, a, lda, b, k2, c, ldc, accumulate, last_mask, next_c);
-    tail_rows<kRows - 1>(rows, vecs, a, lda, b, k2, c, ldc, accumulate, last_mask, next_c);
+    if (rows == kRows)
+      return tile_cols<kRows>(vecs, a, lda, b, k2, c, ldc, accumulate, bias, last_mask, next_c);
+    tail_rows<kRows - 1>(rows, vecs, a, lda, b, k2, c, ldc, accumulate, bias, last_mask, next_c);
   }
 }
 
-// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0; next_c: where the tile
-// after this one starts in C (null: none).
+// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0; bias: C's starting row
+// where the sums do not accumulate (null: zeros); next_c: where the tile after this one starts in C (null:
+// none).
 HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, const bf16_t* b, int k2, int n,
-                                int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* next_c) {
+                                int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* bias,
+                                const float* next_c) {
   const int width = panel_width(n, n0);
   const int vecs = width / kVecCols;
   const int last_cols = n - n0 - (vecs - 1) * kVecCols;  // columns of the panel's last vector
@@ -173,13 +181,14 @@ HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, cons
   const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * k2;
   const bf16_t* am = a + m * 2 * lda.row;
   float* cm = c + m * ldc + n0;
+  const float* bn = bias == nullptr ? nullptr : bias + n0;
   if (h == kRowsPerTile)
-    return tile_cols<kRowsPerTile>(vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask, next_c);
-  tail_rows(h, vecs, am, lda, panel, k2, cm, ldc, accumulate, last_mask, next_c);
+    return tile_cols<kRowsPerTile>(vecs, am, lda, panel, k2, cm, ldc, accumulate, bn, last_mask, next_c);
+  tail_rows(h, vecs, am, lda, panel, k2, cm, ldc, accumulate, bn, last_mask, next_c);
 }
 
 HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
-                                 float* c, ptrdiff_t ldc, bool accumulate) {
+                                 float* c, ptrdiff_t ldc, bool accumulate, const float* bias = nullptr) {
   const int k2 = pairs(k);  // (B's pairs per panel: no padding for this kernel)
   // Every element's sum is the same in either order of the tiles below; only the speed differs.
   // Where the tile at (m, n0) starts; null past the last one.
@@ -188,14 +197,14 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
     for (int m = 0; m < rows; m += kRowsPerTile)
       for (int n0 = 0; n0 < n; n0 += kPanel) {
         const float* next = n0 + kPanel < n ? at(m, n0 + kPanel) : at(m + kRowsPerTile, 0);
-        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, next);
+        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, bias, next);
       }
     return;
   }
   for (int n0 = 0; n0 < n; n0 += kPanel)
     for (int m = 0; m < rows; m += kRowsPerTile) {
       const float* next = m + kRowsPerTile < rows ? at(m + kRowsPerTile, n0) : at(0, n0 + kPanel);
-      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, next);
+      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, bias, next);
     }
 }
 
@@ -463,6 +472,15 @@ void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, pt
     return amx::gemm(at, rows, padded_pairs(k, kern), b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
   }
   gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, accumulate);
+}
+
+void gemm_bias(const bf16_t* a, int rows, int k, const bf16_t* b, int n, const float* bias, float* c,
+               ptrdiff_t ldc) {
+  if (tiles(kernel())) {  // the tiles start from C: C's rows set to the bias first
+    for (int m = 0; m < rows; ++m) std::copy_n(bias, n, c + m * ldc);
+    return gemm(a, rows, k, b, n, c, ldc, true);
+  }
+  gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, false, bias);
 }
 
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,

@@ -3,6 +3,7 @@
 #include <oneapi/tbb/parallel_for.h>
 
 #include <algorithm>
+#include <cstring>
 #include <type_traits>
 
 namespace hns::nn {
@@ -183,17 +184,37 @@ void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {
 
 }  // namespace
 
-void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate) {
-  if (!p.bf16()) {
-    matmul_fp32(w, x, y, accumulate);
-    return;
-  }
+namespace {
+
+// x in bf16 for a product y (+)= x M by matrix id of p (checked against the shapes), in scratch.
+const bf16_t* convert_x(const Weights& p, int id, CMat x, Mat y) {
   const ProductMatrix& m = p.packed->info(id);
   HNS_NN_CHECK(m.rows == x.cols && m.cols == y.cols && x.rows == y.rows, "bf16 product of another shape");
   HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
   bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(x.rows, x.cols));
   bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
+  return a;
+}
+
+}  // namespace
+
+void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate) {
+  if (!p.bf16()) {
+    matmul_fp32(w, x, y, accumulate);
+    return;
+  }
+  const bf16_t* a = convert_x(p, id, x, y);
   bf16::gemm(a, x.rows, x.cols, p.packed->matrix(id), y.cols, y.data, y.stride, accumulate);
+}
+
+void matmul_bias(const Weights& p, int id, const float* w, const float* b, CMat x, Mat y) {
+  if (!p.bf16()) {
+    for (int r = 0; r < y.rows; ++r) std::memcpy(y.row(r), b, sizeof(float) * y.cols);
+    matmul_fp32(w, x, y, true);
+    return;
+  }
+  const bf16_t* a = convert_x(p, id, x, y);
+  bf16::gemm_bias(a, x.rows, x.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
 }
 
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate) {

@@ -58,8 +58,7 @@ inline void axpy(float a, const float* x, float* y, int n) {
 // zeroing pass, no separate bias pass), the activation one pass over y while it is in cache.
 inline void dense_forward(const Weights& p, int id, CMat x, const float* w, const float* b, Activation act,
                           Mat y) {
-  for (int r = 0; r < y.rows; ++r) std::memcpy(y.row(r), b, sizeof(float) * y.cols);
-  matmul(p, id, w, x, y, true);
+  matmul_bias(p, id, w, b, x, y);
   if (act != Activation::kNone)
     for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), nullptr, act, y.cols);
 }

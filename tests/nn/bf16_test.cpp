@@ -210,6 +210,39 @@ TEST_P(NnBf16Kernel, KernelMatchesTheScalarReferenceBitForBitForOddShapes) {
       }
 }
 
+// A product that starts from a bias (rows::dense_forward's y = b + x W) has the bits of C's rows set to the
+// bias and the product accumulated into them, and writes nothing outside C: odd shapes, and one whose C is
+// large enough that the accumulating product takes its other tile order.
+TEST_P(NnBf16Kernel, ProductFromABiasEqualsBiasRowsThenAccumulating) {
+  struct Shape {
+    int rows, k, n;
+  };
+  std::vector<Shape> shapes;
+  for (int k : {1, 3, 32, 33, 160})
+    for (int n : {1, 16, 17, 63, 130})
+      for (int rows : {1, 6, 7, 17}) shapes.push_back({rows, k, n});
+  shapes.push_back({300, 160, 600});
+  uint32_t seed = 500;
+  for (const Shape& s : shapes) {
+    const std::vector<float> a = random_floats(size_t(s.rows) * s.k, ++seed);
+    const std::vector<float> w = random_floats(size_t(s.k) * s.n, ++seed);
+    const std::vector<float> bias = random_floats(size_t(s.n), ++seed);
+    std::vector<bf16_t> ab(bf16::a_elems(s.rows, s.k)), bb(bf16::packed_elems(s.k, s.n));
+    bf16::convert_a(a.data(), s.k, s.rows, s.k, ab.data());
+    bf16::pack_b(w.data(), s.n, s.k, s.n, false, nullptr, bb.data());
+    const int ldc = s.n + 3;  // sentinels between the rows and two rows after C
+    const std::vector<float> c0 = random_floats(size_t(s.rows + 2) * ldc, ++seed);
+    std::vector<float> from_bias = c0, filled = c0;
+    bf16::gemm_bias(ab.data(), s.rows, s.k, bb.data(), s.n, bias.data(), from_bias.data(), ldc);
+    for (int m = 0; m < s.rows; ++m) std::copy(bias.begin(), bias.end(), filled.begin() + size_t(m) * ldc);
+    bf16::gemm(ab.data(), s.rows, s.k, bb.data(), s.n, filled.data(), ldc, true);
+    for (size_t i = 0; i < c0.size(); ++i)
+      ASSERT_EQ(std::bit_cast<uint32_t>(from_bias[i]), std::bit_cast<uint32_t>(filled[i]))
+          << "rows " << s.rows << " k " << s.k << " n " << s.n << " at " << i / size_t(ldc) << ","
+          << i % size_t(ldc);
+  }
+}
+
 TEST_P(NnBf16Kernel, ARowsResultDoesNotDependOnTheRowsBesideIt) {
   const int k = 129, n = 200, rows = 37;
   const std::vector<float> a = random_floats(size_t(rows) * k, 3);
