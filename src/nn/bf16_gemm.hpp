@@ -88,8 +88,9 @@ inline void pack_b_rows(const float* x, ptrdiff_t ldx, int k, int n, bf16_t* out
 
 // C [rows, n] (row stride ldc) (+)= A [rows, k] B [k, n].
 void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc, bool accumulate);
-// C [rows, n] = bias + A B, the bias [n] in every row: the same bits as C's rows set to the bias and gemm
-// accumulating, without that pass over C (the vdpbf16ps kernel starts its sums from the bias in registers).
+// C [rows, n] = bias + A B, the bias [n] (not null) in every row: the same bits as C's rows set to the bias
+// and gemm accumulating; the vdpbf16ps kernel starts its sums from the bias in registers instead of that
+// pass over C (the AMX kernels, whose tiles start from C, make it).
 void gemm_bias(const bf16_t* a, int rows, int k, const bf16_t* b, int n, const float* bias, float* c,
                ptrdiff_t ldc);
 // The same as gemm with A from convert_a_transposed (the weight gradients: C = x^T B).
