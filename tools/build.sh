@@ -72,7 +72,9 @@ hns_build() {
   isa="$(hns_isa)"
   if [ -n "${HNS_SANITIZE:-}" ]; then
     # Sanitizer trees are built with clang (libFuzzer's compiler: an address/undefined tree also holds the
-    # fuzz targets, so CI builds one tree for both); optimised, with debug info for readable reports.
+    # fuzz targets, so CI builds one tree for both); optimised, with line tables for readable reports (the
+    # file and line of every frame; full debug info took about 15 % longer to compile, for nothing a report
+    # shows).
     hns_apt_install required clang libclang-rt-14-dev
     local fuzz=OFF
     [[ "$HNS_SANITIZE" == *thread* ]] || fuzz=ON
@@ -80,7 +82,9 @@ hns_build() {
       rm -rf "$dir"  # a tree configured with another compiler cannot be switched in place
     fi
     CC=clang CXX=clang++ cmake -S "$HNS_ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-      -DHNS_SANITIZE="$HNS_SANITIZE" -DHNS_FUZZ="$fuzz" -DHNS_BUILD_BENCH=OFF -DHNS_ISA="$isa" ${HNS_CMAKE_ARGS:-}
+      -DCMAKE_CXX_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only -DNDEBUG" \
+      -DCMAKE_C_FLAGS_RELWITHDEBINFO="-O2 -gline-tables-only -DNDEBUG" -DHNS_SANITIZE="$HNS_SANITIZE" \
+      -DHNS_FUZZ="$fuzz" -DHNS_BUILD_BENCH=OFF -DHNS_ISA="$isa" ${HNS_CMAKE_ARGS:-}
   else
     cmake -S "$HNS_ROOT" -B "$dir" -DCMAKE_BUILD_TYPE=Release -DHNS_ISA="$isa" ${HNS_CMAKE_ARGS:-}
   fi
