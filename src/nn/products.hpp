@@ -66,7 +66,7 @@ struct Weights {
 // reordered copy of the stored matrix, as the registration's col_map describes).
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate);
 // y = b + x M, the bias b [y.cols] in every row: the same bits as y's rows set to b and matmul accumulating
-// (fp32 does just that; the bf16 kernel starts its sums from b instead of making that pass over y).
+// (fp32 and the AMX kernels do just that; the vdpbf16ps kernel starts its sums from b instead of that pass).
 void matmul_bias(const Weights& p, int id, const float* w, const float* b, CMat x, Mat y);
 // dx (+)= dz M^T, the same matrix: w [dx.cols, dz.cols].
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate);
