@@ -212,7 +212,9 @@ TEST(Stages, DetectorColumnsNameMetricsKeys) {
   auto known = [&](const char* k) { return std::find(keys.begin(), keys.end(), k) != keys.end(); };
   for (const DetectorColumn& c : DetectorTable::columns()) {
     EXPECT_TRUE(known(c.key)) << c.key;
-    if (c.denominator != nullptr) EXPECT_TRUE(known(c.denominator)) << c.denominator;
+    if (c.denominator != nullptr) {
+      EXPECT_TRUE(known(c.denominator)) << c.denominator;
+    }
   }
 }
 
