@@ -211,7 +211,8 @@ class DecisionRule(unittest.TestCase):
 
 
 class BaselineIsa(unittest.TestCase):
-    """A baseline tree from before HNS_ISA gets the current build's instruction set as compiler flags."""
+    """The baseline is built with the current build's code settings; a tree from before HNS_ISA gets the
+    instruction set as compiler flags."""
 
     def tree(self, cmake_text):
         d = tempfile.mkdtemp()
@@ -228,6 +229,19 @@ class BaselineIsa(unittest.TestCase):
             self.assertEqual(gate.isa_args_for(old, ["-DHNS_ISA=avx2"]), ["-DHNS_ISA=avx2"])
         self.assertEqual(gate.isa_args_for(new, ["-DHNS_ISA=avx512"]), ["-DHNS_ISA=avx512"])
         self.assertEqual(gate.isa_args_for(old, ["-DHNS_FMA=OFF"]), ["-DHNS_FMA=OFF"])
+
+    def test_baseline_takes_the_current_builds_code_settings(self):
+        # The settings that change the binaries (HNS_PCH: their layout) come from --current-build's cache,
+        # unless given for the baseline explicitly.
+        build = tempfile.mkdtemp()
+        with open(os.path.join(build, "CMakeCache.txt"), "w") as f:
+            f.write("CMAKE_BUILD_TYPE:STRING=Release\nHNS_ISA:STRING=avx2\nHNS_FMA:BOOL=OFF\nHNS_PCH:BOOL=OFF\n")
+        src = os.path.dirname(os.path.dirname(GATE))
+        args = gate.parse_args(["--current-build", build, "--current-src", src])
+        self.assertEqual(args.baseline_cmake_args.split(), ["-DHNS_ISA=avx2", "-DHNS_FMA=OFF", "-DHNS_PCH=OFF"])
+        args = gate.parse_args(["--current-build", build, "--current-src", src,
+                                "--baseline-cmake-args=-DHNS_PCH=ON"])
+        self.assertEqual(args.baseline_cmake_args.split(), ["-DHNS_PCH=ON", "-DHNS_ISA=avx2", "-DHNS_FMA=OFF"])
 
 
 class ExportRevision(unittest.TestCase):
