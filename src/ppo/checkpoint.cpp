@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
@@ -415,8 +416,15 @@ uint64_t Trainer::export_policy(const std::string& checkpoint, const std::string
   const Trainer reader(cfg);
   const CheckpointState st = reader.read_checkpoint(checkpoint, [](const TrainConfig&) { return ""; });
   if (st.exported) throw std::runtime_error(checkpoint + " is already an exported policy");
+  // An export is made to be shared: the file its run started from is named by its folder and file name only
+  // (p8-s1/checkpoint.bin, models/x.hnspolicy), not by a directory of the machine that trained it.
+  TrainConfig shared = st.config;
+  if (!shared.init_from.empty()) {
+    const std::filesystem::path from(shared.init_from);
+    shared.init_from = (from.parent_path().filename() / from.filename()).generic_string();
+  }
   CheckpointWriter w;
-  w.put_string(st.config.to_json());
+  w.put_string(shared.to_json());
   w.put(st.iteration);
   w.put(st.agent_steps);
   w.put(st.env_steps);

@@ -119,10 +119,12 @@ TEST(Trainer, RefusesCorruptTruncatedAndForeignCheckpoints) {
 // An exported policy (Trainer::export_policy, `hns export`): about a third of the checkpoint; acts exactly as
 // the checkpoint it came from (the same actions on the same observations, step after step); starts a run
 // with --init-from as the checkpoint does (init_optimizer = 0), and is refused, saying why, where a full
-// checkpoint is needed (resume, init_optimizer = 1) or when exported again.
+// checkpoint is needed (resume, init_optimizer = 1) or when exported again. The export names the file its
+// run started from by folder and file name only, without the training machine's directories.
 TEST(Trainer, ExportedPolicyActsAsItsCheckpointAndOnlyStartsRuns) {
   const std::string ckpt = temp_path("export_source.bin"), exported = temp_path("export.hnspolicy");
   TrainConfig cfg = tiny_quadrant();
+  cfg.init_from = "/home/someone/runs/p8-s1/checkpoint.bin";  // as `hns train --init-from` records it
   Trainer source(cfg);
   source.iterate();
   source.iterate();
@@ -130,7 +132,10 @@ TEST(Trainer, ExportedPolicyActsAsItsCheckpointAndOnlyStartsRuns) {
   const uint64_t bytes = Trainer::export_policy(ckpt, exported);
   EXPECT_EQ(bytes, std::filesystem::file_size(exported));
   EXPECT_LT(double(bytes), 0.4 * double(std::filesystem::file_size(ckpt)));
-  EXPECT_EQ(Trainer::checkpoint_config(exported).to_json(), Trainer::checkpoint_config(ckpt).to_json());
+  TrainConfig shared = Trainer::checkpoint_config(ckpt);
+  EXPECT_EQ(shared.init_from, cfg.init_from);
+  shared.init_from = "p8-s1/checkpoint.bin";
+  EXPECT_EQ(Trainer::checkpoint_config(exported).to_json(), shared.to_json());
 
   // The same actions on the same observations, over whole episodes.
   const std::unique_ptr<Policy> from_ckpt = Policy::from_checkpoint(ckpt, 5);
