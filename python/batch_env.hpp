@@ -117,16 +117,13 @@ class BatchEnv {
         episodes = item.second;
       }
     }
-    const bool seeded = !seed.is_none();
-    if (seeded) {
-      const uint64_t s = seed_from(seed);
-      config_.seed = s;
-      py::gil_scoped_release release;
-      sim_->reseed(s);
-    }
+    // Every argument is checked before anything changes: a refused call leaves the env as it was.
+    std::optional<uint64_t> new_seed;
+    if (!seed.is_none()) new_seed = seed_from(seed);
+    std::optional<std::vector<int32_t>> eps;
+    if (episodes && !episodes->is_none()) eps = episode_list(*episodes);
     const bool first = !reset_called_;
-    reset_called_ = true;
-    if (!seeded && !first && (!episodes || episodes->is_none())) {
+    if (!new_seed && !first && !eps) {
       // A later reset without a seed: every env starts its next episode (never one it has played).
       const batch::BatchState& s = sim_->state();
       std::vector<int32_t> next(static_cast<size_t>(num_envs()));
@@ -143,34 +140,18 @@ class BatchEnv {
       }
       return py::make_tuple(observations(copy), info(copy));
     }
-    if (episodes && !episodes->is_none()) {
-      py::array a = as_array(*episodes, "episodes");
-      if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
-        raise(PyExc_TypeError,
-              "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
+    reset_called_ = true;
+    {
+      py::gil_scoped_release release;
+      if (new_seed) {
+        config_.seed = *new_seed;
+        sim_->reseed(*new_seed);
       }
-      check_shape(a, Shape{py::ssize_t(num_envs())}, "episodes");
-      // At most 2^30 - 1: the env's int32 episode counter keeps 2^30 episodes of headroom.
-      std::vector<int32_t> eps(static_cast<size_t>(num_envs()));
-      auto check_copy = [&](const auto* v) {
-        for (int e = 0; e < num_envs(); ++e) {
-          if (static_cast<uint64_t>(v[e]) > uint64_t((1 << 30) - 1)) {  // negative values wrap
-            raise(PyExc_ValueError, "episodes[" + std::to_string(e) + "] = " + std::to_string(+v[e]) +
-                                        " is invalid: must be in [0, 2^30 - 1]");
-          }
-          eps[size_t(e)] = int32_t(v[e]);
-        }
-      };
-      if (a.dtype().kind() == 'u') {
-        check_copy(contiguous<uint64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
+      if (eps) {
+        sim_->reset(*eps);
       } else {
-        check_copy(contiguous<int64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
+        sim_->reset();
       }
-      py::gil_scoped_release release;
-      sim_->reset(eps);
-    } else {
-      py::gil_scoped_release release;
-      sim_->reset();
     }
     return py::make_tuple(observations(copy), info(copy));
   }
@@ -379,6 +360,33 @@ class BatchEnv {
   }
 
  private:
+  // reset()'s episodes argument: one episode number per env, each in [0, 2^30 - 1] (the env's int32 episode
+  // counter keeps 2^30 episodes of headroom).
+  std::vector<int32_t> episode_list(py::handle episodes) {
+    py::array a = as_array(episodes, "episodes");
+    if (a.dtype().kind() != 'i' && a.dtype().kind() != 'u') {
+      raise(PyExc_TypeError,
+            "episodes: dtype " + std::string(py::str(a.dtype())) + " is not an integer dtype");
+    }
+    check_shape(a, Shape{py::ssize_t(num_envs())}, "episodes");
+    std::vector<int32_t> eps(static_cast<size_t>(num_envs()));
+    auto check_copy = [&](const auto* v) {
+      for (int e = 0; e < num_envs(); ++e) {
+        if (static_cast<uint64_t>(v[e]) > uint64_t((1 << 30) - 1)) {  // negative values wrap
+          raise(PyExc_ValueError, "episodes[" + std::to_string(e) + "] = " + std::to_string(+v[e]) +
+                                      " is invalid: must be in [0, 2^30 - 1]");
+        }
+        eps[size_t(e)] = int32_t(v[e]);
+      }
+    };
+    if (a.dtype().kind() == 'u') {
+      check_copy(contiguous<uint64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
+    } else {
+      check_copy(contiguous<int64_t, py::array::c_style | py::array::forcecast>(a, "episodes").data());
+    }
+    return eps;
+  }
+
   void check_open(const char* what) const {
     if (closed_) raise(PyExc_RuntimeError, std::string("BatchEnv.") + what + ": the env is closed");
   }

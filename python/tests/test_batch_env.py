@@ -349,6 +349,23 @@ def test_bad_actions():
     assert list(obs["episode"]) == [3, 4]
 
 
+def test_a_refused_reset_leaves_the_env_as_it_was():
+    # A reset refused for its episodes changes neither the seed nor the worlds nor the episode numbering: the
+    # next reset gives what a twin env that was never refused gives.
+    env = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=3)
+    twin = hns.BatchEnv(scene="quadrant", num_envs=2, threads=1, seed=3)
+    with pytest.raises(ValueError, match=r"episodes\[1\] = -2"):
+        env.reset(episodes=np.array([0, -2]))
+    with pytest.raises(ValueError, match=r"episodes\[1\] = -2"):
+        env.reset(seed=5, episodes=np.array([0, -2]))
+    assert env.seed == 3
+    a, _ = env.reset()
+    b, _ = twin.reset()
+    assert list(a["episode"]) == [0, 0]
+    for name in b:
+        assert a[name].tobytes() == b[name].tobytes(), name
+
+
 def test_reset_with_episodes_replays_those_scenes():
     assert hns.BatchEnv(num_envs=1, seed=np.uint64(2**64 - 1)).seed == 2**64 - 1  # numpy integers are integers
     a = hns.BatchEnv(scene="full", num_envs=2, threads=1, seed=8)
