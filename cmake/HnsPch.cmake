@@ -17,7 +17,8 @@
 # It changes no arithmetic, but it does change where the compiler places shared functions: the binaries'
 # layout differs with HNS_PCH and with the lists below, and tools/perf-gate builds its baseline with the
 # current tree's HNS_PCH. Each file still includes what it uses; CI's AVX2 tree (.ci/run) is configured
-# with -DHNS_PCH=OFF and fails on a file that relies on the precompiled header.
+# with -DHNS_PCH=OFF and fails on a file of the physics, batch, nn or ppo libraries or of the network and
+# trainer tests that relies on the precompiled header.
 option(HNS_PCH "Precompile the headers most files include (faster clean builds)" ON)
 
 set(HNS_PCH_STD
