@@ -487,7 +487,18 @@ void read_evaluation(const EvalOptions& opt, const fs::path& eval_json, const js
       s.random[task] = value.get<double>();
       if (std::find(s.tasks.begin(), s.tasks.end(), task) == s.tasks.end()) s.tasks.push_back(task);
     }
-    for (const json& r : saved.at("runs")) s.runs.push_back(record_of(r));
+    for (const json& r : saved.at("runs")) {
+      RunRecord run = record_of(r);
+      // A finished run has one return and one agent-step count per iteration (the pages draw from both).
+      if (run.returns.size() != size_t(opt.iterations) || run.agent_steps.size() != run.returns.size()) {
+        throw physics::ConfigError(
+            "--resume " + opt.out + ": eval.json's run of " + run.task + ", " + run.condition + ", seed " +
+            std::to_string(run.seed) + " has " + std::to_string(run.returns.size()) + " returns and " +
+            std::to_string(run.agent_steps.size()) + " agent-step counts; a finished run has " +
+            std::to_string(opt.iterations) + " of each");
+      }
+      s.runs.push_back(std::move(run));
+    }
   } catch (const json::exception& e) {
     throw physics::ConfigError("--resume " + opt.out + ": eval.json is not readable: " + e.what());
   } catch (const ppo::FileError& e) {

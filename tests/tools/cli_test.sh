@@ -210,6 +210,25 @@ else
 fi
 expect_fail 2 "seed = -1" train --config "$tmp/train.json" --seed -1 --out "$tmp/neg"
 expect_fail 2 "is also an input" train --resume "$tmp/run" --iterations 3 --profile "$tmp/run/metrics.jsonl"
+# --profile over the run folder's lock or marker (a second run could then take the folder) is refused, neither
+# overwritten by a trace; a refused --profile of a new run leaves no run folder behind.
+expect_fail 2 "is also an input" train --resume "$tmp/run" --iterations 3 --profile "$tmp/run/.hns-lock"
+expect_fail 2 "is also an input" train --resume "$tmp/run" --iterations 3 --profile "$tmp/run/.hns-run"
+expect_fail 2 "is also an input" train --config "$tmp/train.json" --out "$tmp/newprof" --profile "$tmp/newprof/.hns-lock"
+expect_fail 2 "cannot be written" train --config "$tmp/train.json" --out "$tmp/newprof" --profile /proc/hns-profile
+if ! grep -q "traceEvents" "$tmp/run/.hns-lock" && grep -q "a run folder of hns train" "$tmp/run/.hns-run" &&
+   [ ! -e "$tmp/newprof" ]; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: a refused --profile changed the run folder or left a new one: $(ls -a "$tmp/newprof" 2>&1)"
+fi
+mkdir "$tmp/emptyprof"
+expect_fail 2 "cannot be written" train --config "$tmp/train.json" --out "$tmp/emptyprof" --profile /proc/hns-profile
+[ -z "$(ls -A "$tmp/emptyprof")" ] || {
+  failed=$((failed + 1))
+  echo "FAIL: a refused --profile left files in an empty --out folder: $(ls -A "$tmp/emptyprof")"
+}
 expect_fail 2 "seed: checkpoint has 1" train --resume "$tmp/run" --seed 5
 expect_fail 2 "precision: checkpoint has fp32, this run has bf16|precision bf16 needs a CPU with AVX512-BF16" \
   train --resume "$tmp/run" --set precision=bf16
@@ -321,9 +340,20 @@ expect_fail 2 "init_optimizer = '1'.*init_value is 0" train --config "$tmp/train
   --set init_optimizer=1 --init-from "$tmp/run/checkpoint.bin" --out "$tmp/bad"
 expect_fail 2 "profile .*is also an input" train --config "$tmp/train.json" --init-from "$tmp/good.bin" \
   --profile "$tmp/good.bin" --out "$tmp/bad-profile"
+[ -e "$tmp/bad-profile" ] && { failed=$((failed + 1)); echo "FAIL: a refused --profile left its run folder"; }
 expect_fail 2 "observation slots" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" --out "$tmp/bad"
 [ -e "$tmp/bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused --init-from created its run folder"; }
 expect_fail 2 "init_value = '2'" train --config "$tmp/train.json" --set init_value=2 --out "$tmp/bad"
+# srun without an MPI plugin starts plain processes, each of which would train the whole run alone: refused,
+# with no run folder.
+out="$(SLURM_STEP_NUM_TASKS=4 "$hns" train --config "$tmp/train.json" --iterations 1 --out "$tmp/srun" 2>&1)"
+rc=$?
+if [ "$rc" -eq 2 ] && grep -q "started by srun as 4 tasks without MPI" <<<"$out" && [ ! -e "$tmp/srun" ]; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: train as one of 4 srun tasks without MPI -> exit $rc, output: $out"
+fi
 cp "$tmp/init/checkpoint.bin" "$tmp/init-good.bin"
 expect_fail 2 "init-from .*observation slots: the checkpoint's scene lockbox" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" \
   --out "$tmp/init" --overwrite
@@ -422,6 +452,17 @@ expect_fail 2 "holds an evaluation" eval --out "$tmp/eval" --tasks lockbox --ite
 expect_fail 2 "settings .* differ" eval --out "$tmp/eval" --tasks lockbox --iterations 3 --envs 2 --resume
 expect_fail 2 "pretrained lb was .*lb.bin, now .*init-good.bin" eval --out "$tmp/eval" --tasks lockbox \
   --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --pretrained "lb=$tmp/init-good.bin" --resume
+# A damaged eval.json (a run whose curve lost its agent-step counts) is refused on --resume, the pages untouched.
+cp -r "$tmp/eval" "$tmp/eval-damaged"
+python3 -c "import json,sys; d=json.load(open(sys.argv[1])); d['runs'][0]['agent_steps']=[]; json.dump(d, open(sys.argv[1],'w'))" \
+  "$tmp/eval-damaged/eval.json"
+cp "$tmp/eval-damaged/eval.html" "$tmp/eval-damaged.html"
+expect_fail 2 "eval.json's run of lockbox, .*seed 1 has 2 returns and 0 agent-step counts" eval \
+  --out "$tmp/eval-damaged" --tasks lockbox --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --threads 1 --resume
+cmp -s "$tmp/eval-damaged/eval.html" "$tmp/eval-damaged.html" || {
+  failed=$((failed + 1))
+  echo "FAIL: a refused eval --resume rewrote eval.html"
+}
 cp "$tmp/run/checkpoint.bin" "$tmp/lb.bin"
 expect_fail 2 "condition lb .*changed since its first runs" eval --out "$tmp/eval" --tasks lockbox \
   --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --resume
