@@ -95,6 +95,14 @@ if [ "$rc" -eq 2 ] && grep -q "4 ranks for 3 update blocks" <<<"$out" && [ ! -e 
   fail "4 ranks for 3 blocks -> exit $rc: $out"
 fi
 
+# intrinsic = count keeps state that one process owns whole: refused with 2 ranks, no run folder.
+out="$(launch 2 "${args[@]}" --iterations 1 --set intrinsic=count --out "$tmp/count2" 2>&1)"
+rc=$?
+if [ "$rc" -eq 2 ] && grep -q "intrinsic = count runs in one process (2 ranks given)" <<<"$out" &&
+   [ ! -e "$tmp/count2" ]; then ok; else
+  fail "intrinsic = count with 2 ranks -> exit $rc: $out"
+fi
+
 # The rank of a process of the job started by `launch` for run folder $1 (from its environment).
 pid_of_rank() {
   local p
