@@ -141,12 +141,10 @@ class BatchEnv {
       return py::make_tuple(observations(copy), info(copy));
     }
     reset_called_ = true;
+    if (new_seed) config_.seed = *new_seed;  // read by the seed property, under the GIL
     {
       py::gil_scoped_release release;
-      if (new_seed) {
-        config_.seed = *new_seed;
-        sim_->reseed(*new_seed);
-      }
+      if (new_seed) sim_->reseed(*new_seed);
       if (eps) {
         sim_->reset(*eps);
       } else {

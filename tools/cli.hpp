@@ -45,6 +45,11 @@ void write_atomically(const std::string& path, const std::string& text);
 void check_output_path(const std::string& flag, const std::string& path,
                        const std::vector<std::string>& inputs = {});
 
+// The part of check_output_path that needs no file system: `path` (and PATH.tmp, which the atomic write uses)
+// is none of `inputs`, compared as absolute paths with `..` and links resolved where they exist.
+void check_not_an_input(const std::string& flag, const std::string& path,
+                        const std::vector<std::string>& inputs);
+
 // The project version and the git commit of the source it was built from ("unknown" outside a checkout;
 // "-dirty" when the tree had changes), written at build time by cmake/HnsVersion.cmake.
 extern const char* const kHnsVersion;

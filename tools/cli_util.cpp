@@ -44,6 +44,19 @@ void check_output_path(const std::string& flag, const std::string& path,
     reject("its name is too long to write PATH.tmp beside it first (" + std::to_string(name_bytes) +
            " bytes; at most " + std::to_string(NAME_MAX - 4) + ")");
   }
+  check_not_an_input(flag, path, inputs);
+  try {
+    ::close(ppo::create_temp_file(path + ".tmp"));
+    ::unlink((path + ".tmp").c_str());
+  } catch (const std::runtime_error& e) {
+    reject(std::string("cannot be written: ") + e.what());
+  }
+}
+
+void check_not_an_input(const std::string& flag, const std::string& path,
+                        const std::vector<std::string>& inputs) {
+  auto reject = [&](const std::string& why) { throw physics::ConfigError(flag + " " + path + ": " + why); };
+  std::error_code ec;
   const fs::path out = fs::weakly_canonical(path, ec);
   const fs::path out_tmp = fs::weakly_canonical(path + ".tmp", ec);
   for (const std::string& in : inputs) {
@@ -52,12 +65,6 @@ void check_output_path(const std::string& flag, const std::string& path,
     if (!in.empty() && p == out) reject("is also an input of this command; choose another file");
     if (!in.empty() && p == out_tmp)
       reject("is written through " + path + ".tmp, which is an input of this command; choose another file");
-  }
-  try {
-    ::close(ppo::create_temp_file(path + ".tmp"));
-    ::unlink((path + ".tmp").c_str());
-  } catch (const std::runtime_error& e) {
-    reject(std::string("cannot be written: ") + e.what());
   }
 }
 

@@ -346,26 +346,28 @@ void create_run_folder(const TrainOptions& opt, RunSetup& run) {
   write_atomically((fs::path(dir) / kRunMarker).string(), "a run folder of hns train\n");
 }
 
-// What a new run's folder held before this command: what a refused start removes again is only what it added.
-struct FolderBefore {
-  bool folder = false, marker = false, lock_file = false;
-};
-FolderBefore folder_before(const std::string& dir) {
+// --profile against the run's files (its marker and lock included), the checkpoint it starts from and
+// --config. Before a new run's folder is made (`early`), a profile that goes into that folder is compared
+// with those files only (it is tried for writing once the folder exists); any other is checked whole, so that
+// a refusal leaves nothing behind.
+void check_profile(const TrainOptions& opt, const RunSetup& run, bool early) {
+  const fs::path dir(run.dir);
+  const std::vector<std::string> inputs{run.ckpt,
+                                        run.metrics_path,
+                                        run.replay_path,
+                                        run.config_path,
+                                        run.cfg.init_from,
+                                        opt.config_file,
+                                        (dir / kRunMarker).string(),
+                                        (dir / ppo::FolderLock::kFileName).string()};
   std::error_code ec;
-  return {fs::is_directory(dir, ec), fs::exists(fs::path(dir) / kRunMarker, ec),
-          fs::exists(fs::path(dir) / ppo::FolderLock::kFileName, ec)};
-}
-
-// A start refused after create_run_folder: the marker and lock file it wrote and the folder it made are
-// removed, while the lock is still held (a process that did not get the lock leaves the folder to its
-// holder).
-void take_back_run_folder(RunSetup& run, const FolderBefore& before) {
-  if (!run.lock.held()) return;
-  std::error_code ec;
-  if (!before.marker) fs::remove(fs::path(run.dir) / kRunMarker, ec);
-  if (!before.lock_file) fs::remove(fs::path(run.dir) / ppo::FolderLock::kFileName, ec);
-  run.lock = ppo::FolderLock();
-  if (!before.folder) fs::remove(run.dir, ec);  // only if empty
+  const fs::path parent = fs::weakly_canonical(fs::path(opt.profile), ec).parent_path();
+  if (early && !fs::exists(dir, ec) && parent == fs::weakly_canonical(dir, ec)) {
+    check_path_length("--profile", opt.profile);
+    check_not_an_input("--profile", opt.profile, inputs);
+    return;
+  }
+  check_output_path("--profile", opt.profile, inputs);
 }
 
 // A new run's files of an earlier run in the folder, removed. Nothing is removed unless every run file it
@@ -635,11 +637,10 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
 
   if (run.dir.empty()) run.dir = "runs/" + cfg.scene + "-" + cfg.model + "-seed" + std::to_string(cfg.seed);
   run.name_files();
-  FolderBefore before;  // a new run's folder before this command touched it
   if (!run.resume && lead) {
     check_path_length("--out", run.dir);
     check_run_folder(run.dir);
-    before = folder_before(run.dir);
+    if (!opt.profile.empty()) check_profile(opt, run, true);
     std::error_code ec;
     if (fs::is_directory(run.dir, ec)) run.lock = lock_run_folder("--out", run.dir);
     check_no_run_unless(opt.overwrite, run.dir, run.ckpt);
@@ -649,21 +650,8 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   if (const int refused = load_start(trainer, run, lead, initialized)) return refused;
   check_same_start(trainer, comm);
   if (!lead) return follow(trainer, cfg, comm);
-  // The --profile check comes once a new run folder exists (a profile may go into it); a refusal there, or
-  // in create_run_folder, takes back what this command added to the folder.
-  try {
-    if (!run.resume) create_run_folder(opt, run);
-    if (!opt.profile.empty()) {
-      const fs::path dir(run.dir);
-      check_output_path(
-          "--profile", opt.profile,
-          {run.ckpt, run.metrics_path, run.replay_path, run.config_path, cfg.init_from, opt.config_file,
-           (dir / kRunMarker).string(), (dir / ppo::FolderLock::kFileName).string()});
-    }
-  } catch (...) {
-    if (!run.resume) take_back_run_folder(run, before);
-    throw;
-  }
+  if (!run.resume) create_run_folder(opt, run);
+  if (!opt.profile.empty()) check_profile(opt, run, false);
   if (!run.resume) remove_old_run_files(run);
 
   std::string earlier_metrics;
