@@ -4,9 +4,9 @@
 // Every float operation is built from point-to-point messages and gathers in a fixed order, never from MPI's
 // own reductions (whose summation order depends on the algorithm and the topology): allgather concatenates in
 // rank order; sum() and any() reduce integers with MPI_Allreduce (exact in any order); chain_sum passes the
-// running gradient sum from rank to rank in slices (rank r receives the sum of ranks < r for a slice, folds its
-// own blocks onto it and sends it on; slices pipeline through the chain), then the last rank broadcasts the
-// result. So a run gives the same bits on 1, 2 or 4 ranks.
+// running gradient sum from rank to rank in slices (rank r receives the sum of ranks < r for a slice, folds
+// its own blocks onto it and sends it on; slices pipeline through the chain), then the last rank broadcasts
+// the result. So a run gives the same bits on 1, 2 or 4 ranks.
 #pragma once
 
 #include <cstdint>
