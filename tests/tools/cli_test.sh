@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
 # The hns command line: bad input exits 2 with a message naming the problem; a short bench run writes the
-# documented JSON fields. Usage: cli_test.sh path/to/hns
+# documented JSON fields. Usage: cli_test.sh path/to/hns [mpi|no-mpi] (whether hns was built with MPI; default
+# mpi)
 set -u
 hns="$1"
+mpi="${2:-mpi}"
 tmp="$(mktemp -d)"
 trap 'rm -rf "$tmp"' EXIT
 passed=0
@@ -353,6 +355,21 @@ if [ "$rc" -eq 2 ] && grep -q "started by srun as 4 tasks without MPI" <<<"$out"
 else
   failed=$((failed + 1))
   echo "FAIL: train as one of 4 srun tasks without MPI -> exit $rc, output: $out"
+fi
+# A build without MPI started by an MPI launcher as one of several processes (its environment says so):
+# refused, with no run folder (each process would train the whole run alone). Only where hns has no MPI: an
+# MPI build would join the job, and there is none here.
+if [ "$mpi" = no-mpi ]; then
+  for launcher in OMPI_COMM_WORLD_SIZE PMI_SIZE PMIX_SIZE; do
+    out="$(env "$launcher=3" "$hns" train --config "$tmp/train.json" --iterations 1 --out "$tmp/mpirun" 2>&1)"
+    rc=$?
+    if [ "$rc" -eq 2 ] && grep -q "built without MPI.*one of 3 processes" <<<"$out" && [ ! -e "$tmp/mpirun" ]; then
+      passed=$((passed + 1))
+    else
+      failed=$((failed + 1))
+      echo "FAIL: train without MPI as one of 3 processes ($launcher) -> exit $rc, output: $out"
+    fi
+  done
 fi
 cp "$tmp/init/checkpoint.bin" "$tmp/init-good.bin"
 expect_fail 2 "init-from .*observation slots: the checkpoint's scene lockbox" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" \

@@ -2,7 +2,8 @@
 # hns train across processes (MPI): the same config gives byte-identical checkpoints and the same metrics
 # (timings aside) with one process and with 2 or 3 ranks, at any thread count, in quadrant and in full with
 # one env per rank (row counts that are not a multiple of 4); a run started with one rank resumes with two
-# bit-identically; SIGUSR1 to mpirun stops every rank after the same iteration with a checkpoint; a killed rank
+# bit-identically; a non-finite loss stops every rank with status 3 and the last checkpoint kept; SIGUSR1 to
+# mpirun stops every rank after the same iteration with a checkpoint; a killed rank
 # (rank 1, then rank 0, the one that writes) ends the whole job within seconds with the last checkpoint intact,
 # and the run resumes; a bad rank count and ranks started with different configs are refused with status 2.
 # Usage: mpi_test.sh path/to/hns path/to/mpirun
@@ -144,6 +145,22 @@ resumes() {  # resumes DIR WHAT: the run continues one more iteration from its c
     fail "$2: resume: $(tail -3 "$1.after")"
   fi
 }
+
+# A non-finite loss stops every rank alike: each exits 3 by itself after the same iteration (none is ended by
+# mpirun for another's status), rank 0 says so, and the last checkpoint (iteration 1) is kept whole.
+STATUS_DIR="$tmp" "$mpirun" --oversubscribe --bind-to none -x STATUS_DIR -np 2 \
+  bash -c '"$0" "$@"; echo $? >"$STATUS_DIR/rank$OMPI_COMM_WORLD_RANK"' \
+  "$hns" "${args[@]}" --iterations 4 --threads 1 --set checkpoint_every=1 --set inject_nan_at=2 --out "$tmp/nan" \
+  >"$tmp/nan.log" 2>&1
+if [ "$(cat "$tmp/rank0" 2>/dev/null)" = 3 ] && [ "$(cat "$tmp/rank1" 2>/dev/null)" = 3 ] &&
+   grep -q "stopped: iteration 2, .*not finite" "$tmp/nan.log" &&
+   grep -q "last good checkpoint is kept: .*(iteration 1)" "$tmp/nan.log" &&
+   [ "$(wc -l <"$tmp/nan/metrics.jsonl")" -eq 1 ]; then ok; else
+  fail "NaN at iteration 2 with 2 ranks: statuses $(cat "$tmp/rank0" "$tmp/rank1" 2>&1 | tr '\n' ' '): $(tail -5 "$tmp/nan.log")"
+fi
+# (Resuming would meet the same NaN: inject_nan_at is part of the run's config. The kept checkpoint is whole.)
+"$hns" play --checkpoint "$tmp/nan/checkpoint.bin" --episodes 1 --out "$tmp/nan.traj" >"$tmp/nan.play" 2>&1 && ok ||
+  fail "NaN stop: the kept checkpoint does not play: $(tail -3 "$tmp/nan.play")"
 
 # SIGUSR1 to mpirun (forwarded to every rank): all stop after the same iteration, status 130, a checkpoint.
 start_long_job "$tmp/stopped"
