@@ -148,7 +148,7 @@ resumes() {  # resumes DIR WHAT: the run continues one more iteration from its c
 
 # A non-finite loss stops every rank alike: each exits 3 by itself after the same iteration (none is ended by
 # mpirun for another's status), rank 0 says so, and the last checkpoint (iteration 1) is kept whole.
-STATUS_DIR="$tmp" "$mpirun" --oversubscribe --bind-to none -x STATUS_DIR -np 2 \
+STATUS_DIR="$tmp" timeout 60 "$mpirun" --oversubscribe --bind-to none -x STATUS_DIR -np 2 \
   bash -c '"$0" "$@"; echo $? >"$STATUS_DIR/rank$OMPI_COMM_WORLD_RANK"' \
   "$hns" "${args[@]}" --iterations 4 --threads 1 --set checkpoint_every=1 --set inject_nan_at=2 --out "$tmp/nan" \
   >"$tmp/nan.log" 2>&1
