@@ -3,9 +3,9 @@
 # (timings aside) with one process and with 2 or 3 ranks, at any thread count, in quadrant and in full with
 # one env per rank (row counts that are not a multiple of 4); a run started with one rank resumes with two
 # bit-identically; a non-finite loss stops every rank with status 3 and the last checkpoint kept; SIGUSR1 to
-# mpirun stops every rank after the same iteration with a checkpoint; a killed rank
-# (rank 1, then rank 0, the one that writes) ends the whole job within seconds with the last checkpoint intact,
-# and the run resumes; a bad rank count and ranks started with different configs are refused with status 2.
+# mpirun stops every rank after the same iteration with a checkpoint; a killed rank (rank 1, then rank 0, the
+# one that writes) ends the whole job within seconds with the last checkpoint intact, and the run resumes; a
+# bad rank count and ranks started with different configs are refused with status 2.
 # Usage: mpi_test.sh path/to/hns path/to/mpirun
 set -u
 hns="$1"
@@ -152,11 +152,14 @@ STATUS_DIR="$tmp" timeout 60 "$mpirun" --oversubscribe --bind-to none -x STATUS_
   bash -c '"$0" "$@"; echo $? >"$STATUS_DIR/rank$OMPI_COMM_WORLD_RANK"' \
   "$hns" "${args[@]}" --iterations 4 --threads 1 --set checkpoint_every=1 --set inject_nan_at=2 --out "$tmp/nan" \
   >"$tmp/nan.log" 2>&1
-if [ "$(cat "$tmp/rank0" 2>/dev/null)" = 3 ] && [ "$(cat "$tmp/rank1" 2>/dev/null)" = 3 ] &&
-   grep -q "stopped: iteration 2, .*not finite" "$tmp/nan.log" &&
+rc=$?
+# (The wrappers exit 0, so mpirun's status is 0 unless a rank was aborted or killed, or the job hung.)
+if [ "$rc" -eq 0 ] && ! grep -q "MPI_ABORT" "$tmp/nan.log" &&
+   [ "$(cat "$tmp/rank0" 2>/dev/null)" = 3 ] && [ "$(cat "$tmp/rank1" 2>/dev/null)" = 3 ] &&
+   [ "$(grep -c "stopped: iteration 2, .*not finite" "$tmp/nan.log")" -eq 1 ] &&
    grep -q "last good checkpoint is kept: .*(iteration 1)" "$tmp/nan.log" &&
    [ "$(wc -l <"$tmp/nan/metrics.jsonl")" -eq 1 ]; then ok; else
-  fail "NaN at iteration 2 with 2 ranks: statuses $(cat "$tmp/rank0" "$tmp/rank1" 2>&1 | tr '\n' ' '): $(tail -5 "$tmp/nan.log")"
+  fail "NaN at iteration 2 with 2 ranks: mpirun $rc, ranks $(cat "$tmp/rank0" "$tmp/rank1" 2>&1 | tr '\n' ' '): $(tail -5 "$tmp/nan.log")"
 fi
 # (Resuming would meet the same NaN: inject_nan_at is part of the run's config. The kept checkpoint is whole.)
 "$hns" play --checkpoint "$tmp/nan/checkpoint.bin" --episodes 1 --out "$tmp/nan.traj" >"$tmp/nan.play" 2>&1 && ok ||
