@@ -20,7 +20,7 @@ constexpr int kTileBytes = 64;  // bytes per tile row
 
 // ---- the tiles on hardware
 
-// The tile configuration (palette 1): tiles 0-7 all 16 rows of 64 bytes. Loaded once per thread.
+// The tile configuration (palette 1): tiles 0-7 all 16 rows of 64 bytes. Loaded at each product's start.
 struct alignas(64) TileConfig {
   uint8_t palette = 1;
   uint8_t start_row = 0;

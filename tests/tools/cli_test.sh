@@ -356,6 +356,24 @@ else
   failed=$((failed + 1))
   echo "FAIL: train as one of 4 srun tasks without MPI -> exit $rc, output: $out"
 fi
+# HNS_BF16_KERNEL picks the bf16 kernel: an unknown value, or amx on a CPU without AMX-BF16 tiles, is refused
+# when a bf16 run starts (exit 2, no run folder). Only where the CPU has AVX512-BF16 (elsewhere bf16 itself is
+# refused first).
+if grep -qw avx512_bf16 /proc/cpuinfo; then
+  kernels=(bogus)
+  grep -qw amx_bf16 /proc/cpuinfo || kernels+=(amx)
+  for k in "${kernels[@]}"; do
+    out="$(HNS_BF16_KERNEL="$k" "$hns" train --config "$tmp/train.json" --precision bf16 --iterations 1 \
+      --out "$tmp/kernel" 2>&1)"
+    rc=$?
+    if [ "$rc" -eq 2 ] && grep -q "HNS_BF16_KERNEL.*$k" <<<"$out" && [ ! -e "$tmp/kernel" ]; then
+      passed=$((passed + 1))
+    else
+      failed=$((failed + 1))
+      echo "FAIL: train --precision bf16 with HNS_BF16_KERNEL=$k -> exit $rc, output: $out"
+    fi
+  done
+fi
 # A build without MPI started by an MPI launcher as one of several processes (its environment says so):
 # refused, with no run folder (each process would train the whole run alone). Only where hns has no MPI: an
 # MPI build would join the job, and there is none here.
