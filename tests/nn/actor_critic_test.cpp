@@ -164,7 +164,14 @@ TEST(NnNetwork, PaperPresetHasAboutOnePointSixMillionParameters) {
       ac.params().layout().find("policy/lstm/w")->size() + ac.params().layout().find("policy/lstm/b")->size(),
       525312u);
   EXPECT_EQ(ac.heads().num_logits(), 37);
+  // The split src/nn/README.md gives ("Parameters").
+  size_t policy = 0, value = 0;
+  for (const ParamSlice& slice : ac.params().layout().slices())
+    (slice.name.rfind("policy/", 0) == 0 ? policy : value) += slice.size();
+  EXPECT_EQ(policy, 818377u);
+  EXPECT_EQ(value, 809125u);
   ActorCritic small(net_preset("small"));
+  EXPECT_EQ(small.num_params(), 486126u);
   EXPECT_LT(small.num_params(), ac.num_params() / 3);
   EXPECT_THROW(net_preset("huge"), std::invalid_argument);
 }
