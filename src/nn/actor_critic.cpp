@@ -4,6 +4,8 @@
 
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
+#include <oneapi/tbb/parallel_invoke.h>
+#include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
 #include <cstring>
@@ -13,6 +15,14 @@ namespace {
 
 const float* offset(const float* p, size_t first, size_t per_row) {
   return p == nullptr ? nullptr : p + first * per_row;
+}
+
+// policy() and value() as two tasks. While this thread waits for the other one it runs nothing but them
+// (isolated): a task of another gradient group started here would take this thread's workspace, which the
+// two tasks are using.
+template <class Policy, class Value>
+void both_nets(const Policy& policy, const Value& value) {
+  tbb::this_task_arena::isolate([&] { tbb::parallel_invoke(policy, value); });
 }
 
 // The layout of both networks: policy slices first, then value slices.
@@ -280,19 +290,31 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
       const ObsBatch sub = obs.rows_from(first_row, cfg_.obs);
       const NetInputs pin = sub.policy_inputs();
       const NetInputs vin = sub.value_inputs();
-      policy_.forward(
-          p, norm, pin, n, steps,
-          policy_state0 == nullptr ? nullptr : policy_state0 + static_cast<ptrdiff_t>(first_seq) * sw,
-          nullptr, w.policy, &lstm_packed_[0]);
-      value_.forward(
-          p, norm, vin, n, steps,
-          value_state0 == nullptr ? nullptr : value_state0 + static_cast<ptrdiff_t>(first_seq) * sw, nullptr,
-          w.value, &lstm_packed_[1]);
+      // The two networks are independent up to the loss and after it (each writes its own parameters'
+      // slice of gg), so each pass is two tasks: a thread with no group left takes one of them.
+      both_nets(
+          [&] {
+            policy_.forward(
+                p, norm, pin, n, steps,
+                policy_state0 == nullptr ? nullptr : policy_state0 + static_cast<ptrdiff_t>(first_seq) * sw,
+                nullptr, w.policy, &lstm_packed_[0]);
+          },
+          [&] {
+            value_.forward(
+                p, norm, vin, n, steps,
+                value_state0 == nullptr ? nullptr : value_state0 + static_cast<ptrdiff_t>(first_seq) * sw,
+                nullptr, w.value, &lstm_packed_[1]);
+          });
       const ChunkOutputs outs{first_row, rows, policy_.output(w.policy, rows), w.value.bufs().head};
       const ChunkGrads grads{Mat(w.d_logits.data(), rows, nl), w.d_value.data()};
       loss(outs, grads, std::span<double>(chunk_stats_.data() + static_cast<size_t>(c) * nstats, nstats));
-      policy_.backward(p, gg, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
-      value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
+      both_nets(
+          [&] {
+            policy_.backward(p, gg, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
+          },
+          [&] {
+            value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
+          });
     }
   });
 }

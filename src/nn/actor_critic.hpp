@@ -62,8 +62,9 @@ inline constexpr int kActRowAlign = 8;
 struct ParallelConfig {
   int infer_chunk_agents = 64;     // agents per inference task
   int train_chunk_sequences = 16;  // BPTT sequences per training chunk
-  // Gradient buffers: the parallel width of training, and per minibatch one zeroing and one summing pass over
-  // groups x parameters floats (16 groups cost about 5 % of a quadrant paper iteration on 2 cores over 8).
+  // Gradient buffers: the parallel width of training (two tasks each, the policy and the value network), and
+  // per minibatch one zeroing and one summing pass over groups x parameters floats (16 groups cost about 5 %
+  // of a quadrant paper iteration on 2 cores over 8).
   int grad_groups = 8;
 };
 
