@@ -17,12 +17,10 @@ const float* offset(const float* p, size_t first, size_t per_row) {
   return p == nullptr ? nullptr : p + first * per_row;
 }
 
-// policy() and value() as two tasks. While this thread waits for the other one it runs nothing but them
-// (isolated): a task of another gradient group started here would take this thread's workspace, which the
-// two tasks are using.
+// policy() and value() as two tasks (the caller isolates them: compute_groups).
 template <class Policy, class Value>
 void both_nets(const Policy& policy, const Value& value) {
-  tbb::this_task_arena::isolate([&] { tbb::parallel_invoke(policy, value); });
+  tbb::parallel_invoke(policy, value);
 }
 
 // The layout of both networks: policy slices first, then value slices.
@@ -100,7 +98,11 @@ struct ActorCritic::ThreadWork {
 };
 
 ActorCritic::ActorCritic(const NetConfig& cfg, ParallelConfig parallel)
-    : cfg_(cfg), par_(parallel), heads_(cfg.action_heads), params_(build_layout(cfg, policy_, value_)) {
+    : cfg_(cfg),
+      par_(parallel),
+      heads_(cfg.action_heads),
+      params_(build_layout(cfg, policy_, value_)),
+      train_pool_(std::make_unique<WorkPool>()) {
   HNS_NN_CHECK(par_.infer_chunk_agents > 0 && par_.train_chunk_sequences > 0 && par_.grad_groups > 0,
                "parallel chunk sizes must be positive");
 }
@@ -113,6 +115,25 @@ ActorCritic::ThreadWork& ActorCritic::local_work(
   if (!w || w->sequences != sequences || w->steps != steps)
     w = std::make_unique<ThreadWork>(*this, sequences, steps);
   return *w;
+}
+
+std::unique_ptr<ActorCritic::ThreadWork> ActorCritic::take_train_work(int sequences, int steps) {
+  std::unique_ptr<ThreadWork> w;
+  {
+    const std::lock_guard<std::mutex> lock(train_pool_->mutex);
+    if (!train_pool_->idle.empty()) {
+      w = std::move(train_pool_->idle.back());
+      train_pool_->idle.pop_back();
+    }
+  }
+  if (!w || w->sequences != sequences || w->steps != steps)
+    w = std::make_unique<ThreadWork>(*this, sequences, steps);
+  return w;
+}
+
+void ActorCritic::give_back(std::unique_ptr<ThreadWork> w) {
+  const std::lock_guard<std::mutex> lock(train_pool_->mutex);
+  train_pool_->idle.push_back(std::move(w));
 }
 
 void ActorCritic::pack_lstms(bool for_backward) const {
@@ -278,8 +299,9 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
   const Weights p = prepare_weights(true);
 
   // Each group: its chunks in order, gradients summed into its own buffer.
-  tbb::parallel_for(0, groups, [&](int g) {
-    ThreadWork& w = local_work(train_work_, chunk, steps);
+  auto group = [&](int g) {
+    std::unique_ptr<ThreadWork> work = take_train_work(chunk, steps);
+    ThreadWork& w = *work;
     float* gg = group_grads_[g].data();
     if (group_clear_[g] != 0) group_grads_[g].fill_zero();
     for (int c = group_chunks_[g]; c < group_chunks_[g + 1]; ++c) {
@@ -291,7 +313,7 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
       const NetInputs pin = sub.policy_inputs();
       const NetInputs vin = sub.value_inputs();
       // The two networks are independent up to the loss and after it (each writes its own parameters'
-      // slice of gg), so each pass is two tasks: a thread with no group left takes one of them.
+      // slice of gg), so each pass is two tasks: a thread with no group left may take one of them.
       both_nets(
           [&] {
             policy_.forward(
@@ -316,7 +338,12 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
             value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
           });
     }
-  });
+    give_back(std::move(work));
+  };
+  // Isolated: while a group waits for one of its networks, its thread runs nothing but the group's own tasks
+  // (another group started there would hold this one up until it ended, and groups would nest on one
+  // thread's stack). Threads with no group left still take a network of a group that is running.
+  tbb::parallel_for(0, groups, [&](int g) { tbb::this_task_arena::isolate([&] { group(g); }); });
 }
 
 }  // namespace hns::nn

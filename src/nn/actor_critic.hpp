@@ -22,6 +22,7 @@
 #include <cstdint>
 #include <functional>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -173,7 +174,15 @@ class ActorCritic {
   CategoricalHeads heads_;
   ParamStore params_;
   mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> infer_work_;
-  mutable tbb::enumerable_thread_specific<std::unique_ptr<ThreadWork>> train_work_;
+  // Training workspaces: a gradient group takes one at its start and gives it back at its end, so no more
+  // exist than groups ever ran at once (min(threads, groups)), whichever threads ran them over a run.
+  struct WorkPool {
+    std::mutex mutex;
+    std::vector<std::unique_ptr<ThreadWork>> idle;
+  };
+  std::unique_ptr<WorkPool> train_pool_;  // (made by the constructor, where ThreadWork is complete)
+  std::unique_ptr<ThreadWork> take_train_work(int sequences, int steps);
+  void give_back(std::unique_ptr<ThreadWork> w);
   // Packs both LSTMs' recurrent kernels for the current params (the forward's only, or both).
   void pack_lstms(bool for_backward) const;
   // The weights a pass reads at the current precision, packed as needed: fp32, the LSTMs' recurrent kernels;

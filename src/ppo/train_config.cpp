@@ -614,13 +614,13 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
                           value.workspace_floats(par.train_chunk_sequences, bptt);
   const size_t infer_ws =
       policy.workspace_floats(par.infer_chunk_agents, 1) + value.workspace_floats(par.infer_chunk_agents, 1);
-  // Training runs one task per update block (gradient group), so at most that many threads hold a training
-  // workspace; each block's two networks may run on two threads, so twice as many may hold bf16 scratch.
+  // Training workspaces: one per gradient group running at once (nn::ActorCritic keeps them in a pool), so
+  // min(threads, update blocks). Every thread keeps its inference workspace and, for bf16, its operand
+  // scratch (a quarter of a training workspace at most) once it has run a network: over a run, every thread
+  // may.
   const size_t blocks = size_t(std::max(1, update_blocks()));
-  const size_t train_threads = std::min(threads_used, blocks);
-  const size_t scratch_threads = std::min(threads_used, 2 * blocks);
-  floats += train_threads * train_ws + (precision == "fp32" ? 0 : scratch_threads * (train_ws / 4)) +
-            threads_used * infer_ws;
+  floats += std::min(threads_used, blocks) * train_ws +
+            threads_used * ((precision == "fp32" ? 0 : train_ws / 4) + infer_ws);
   const double bytes = (double(floats) * sizeof(float) + double(bc.estimated_bytes())) * kMargin;
   return size_t(bytes) + kFixedBytes;
 }

@@ -10,6 +10,7 @@
 
 #include <gtest/gtest.h>
 #include <oneapi/tbb/global_control.h>
+#include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
 #include <cmath>
@@ -661,7 +662,6 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
   ParallelConfig par;
   par.infer_chunk_agents = 8;
   par.train_chunk_sequences = 3;
-  par.grad_groups = 4;
   const int agents = 61, seqs = 23, steps = 5;
   const ObsData obs_act(cfg.obs, agents, 400);
   const ObsData obs_train(cfg.obs, seqs * steps, 500);
@@ -671,8 +671,7 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
     std::vector<float> logp, value, ps, vs, grads, params;
     std::vector<double> stats;
   };
-  auto run = [&](int threads) {
-    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+  auto run_in_arena = [&] {
     ActorCritic ac(cfg, par);
     ac.params().init(13);
     use(ac);
@@ -715,18 +714,33 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
     r.params.assign(ac.params().values(), ac.params().values() + ac.params().buffer_floats());
     return r;
   };
-  const Result one = run(1);
-  // (8 threads: more than the 4 groups, so threads with no group left run the other network of a group.)
-  for (int threads : {2, 3, 8}) {
-    const Result many = run(threads);
-    EXPECT_EQ(one.actions, many.actions) << threads << " threads";
-    EXPECT_TRUE(same_bits(one.logp.data(), many.logp.data(), one.logp.size()));
-    EXPECT_TRUE(same_bits(one.value.data(), many.value.data(), one.value.size()));
-    EXPECT_TRUE(same_bits(one.ps.data(), many.ps.data(), one.ps.size()));
-    EXPECT_TRUE(same_bits(one.vs.data(), many.vs.data(), one.vs.size()));
-    EXPECT_TRUE(same_bits(one.grads.data(), many.grads.data(), one.grads.size()));
-    EXPECT_TRUE(same_bits(one.params.data(), many.params.data(), one.params.size()));
-    EXPECT_EQ(one.stats, many.stats);
+  // `threads` threads for real, whatever the host's core count: an arena of that many slots.
+  auto run = [&](int threads, int groups) {
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
+    tbb::task_arena arena(threads);
+    Result r;
+    par.grad_groups = groups;
+    arena.execute([&] { r = run_in_arena(); });
+    return r;
+  };
+
+  // 1 group (the only parallel work is then a chunk's two networks) and 4; 8 threads three times: more
+  // threads than tasks, so threads with no group left take a network of a group that is running.
+  Result one;
+  for (int groups : {1, 4}) {
+    one = run(1, groups);
+    for (int threads : {2, 3, 8, 8, 8}) {
+      const Result many = run(threads, groups);
+      const std::string where = std::to_string(threads) + " threads, " + std::to_string(groups) + " groups";
+      EXPECT_EQ(one.actions, many.actions) << where;
+      EXPECT_TRUE(same_bits(one.logp.data(), many.logp.data(), one.logp.size())) << where;
+      EXPECT_TRUE(same_bits(one.value.data(), many.value.data(), one.value.size())) << where;
+      EXPECT_TRUE(same_bits(one.ps.data(), many.ps.data(), one.ps.size())) << where;
+      EXPECT_TRUE(same_bits(one.vs.data(), many.vs.data(), one.vs.size())) << where;
+      EXPECT_TRUE(same_bits(one.grads.data(), many.grads.data(), one.grads.size())) << where;
+      EXPECT_TRUE(same_bits(one.params.data(), many.params.data(), one.params.size())) << where;
+      EXPECT_EQ(one.stats, many.stats) << where;
+    }
   }
   double norm2 = 0.0;
   for (float g : one.grads) norm2 += static_cast<double>(g) * g;
