@@ -717,15 +717,15 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
   // `threads` threads for real, whatever the host's core count: an arena of that many slots.
   auto run = [&](int threads, int groups) {
     tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-    tbb::task_arena arena(threads);
-    Result r;
     par.grad_groups = groups;
-    arena.execute([&] { r = run_in_arena(); });
+    Result r;
+    tbb::task_arena(threads).execute([&] { r = run_in_arena(); });
     return r;
   };
-
-  // 1 group (the only parallel work is then a chunk's two networks) and 4; 8 threads three times: more
-  // threads than tasks, so threads with no group left take a network of a group that is running.
+  // 1 group (then only a chunk's two networks run in parallel) and 4; 8 threads (more than tasks) 3 times.
+  auto same = [](const std::vector<float>& a, const std::vector<float>& b) {
+    return same_bits(a.data(), b.data(), a.size());
+  };
   Result one;
   for (int groups : {1, 4}) {
     one = run(1, groups);
@@ -733,12 +733,9 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
       const Result many = run(threads, groups);
       const std::string where = std::to_string(threads) + " threads, " + std::to_string(groups) + " groups";
       EXPECT_EQ(one.actions, many.actions) << where;
-      EXPECT_TRUE(same_bits(one.logp.data(), many.logp.data(), one.logp.size())) << where;
-      EXPECT_TRUE(same_bits(one.value.data(), many.value.data(), one.value.size())) << where;
-      EXPECT_TRUE(same_bits(one.ps.data(), many.ps.data(), one.ps.size())) << where;
-      EXPECT_TRUE(same_bits(one.vs.data(), many.vs.data(), one.vs.size())) << where;
-      EXPECT_TRUE(same_bits(one.grads.data(), many.grads.data(), one.grads.size())) << where;
-      EXPECT_TRUE(same_bits(one.params.data(), many.params.data(), one.params.size())) << where;
+      EXPECT_TRUE(same(one.logp, many.logp) && same(one.value, many.value)) << "act's outputs, " << where;
+      EXPECT_TRUE(same(one.ps, many.ps) && same(one.vs, many.vs)) << "states, " << where;
+      EXPECT_TRUE(same(one.grads, many.grads) && same(one.params, many.params)) << "gradients, " << where;
       EXPECT_EQ(one.stats, many.stats) << where;
     }
   }
