@@ -346,47 +346,35 @@ expect_fail 2 "profile .*is also an input" train --config "$tmp/train.json" --in
 expect_fail 2 "observation slots" train --scene quadrant --envs 2 --init-from "$tmp/run/checkpoint.bin" --out "$tmp/bad"
 [ -e "$tmp/bad" ] && { failed=$((failed + 1)); echo "FAIL: a refused --init-from created its run folder"; }
 expect_fail 2 "init_value = '2'" train --config "$tmp/train.json" --set init_value=2 --out "$tmp/bad"
-# srun without an MPI plugin starts plain processes, each of which would train the whole run alone: refused,
-# with no run folder.
-out="$(SLURM_STEP_NUM_TASKS=4 "$hns" train --config "$tmp/train.json" --iterations 1 --out "$tmp/srun" 2>&1)"
-rc=$?
-if [ "$rc" -eq 2 ] && grep -q "started by srun as 4 tasks without MPI" <<<"$out" && [ ! -e "$tmp/srun" ]; then
-  passed=$((passed + 1))
-else
-  failed=$((failed + 1))
-  echo "FAIL: train as one of 4 srun tasks without MPI -> exit $rc, output: $out"
-fi
+# refused_start VAR=VALUE PATTERN [ARGS...]: hns train started with VAR=VALUE in its environment (and ARGS)
+# exits 2 with output matching PATTERN and makes no run folder.
+refused_start() {
+  local setting="$1" pattern="$2" out rc
+  shift 2
+  rm -rf "$tmp/refused"
+  out="$(env "$setting" "$hns" train --config "$tmp/train.json" --iterations 1 --out "$tmp/refused" "$@" 2>&1)"
+  rc=$?
+  if [ "$rc" -eq 2 ] && grep -q -- "$pattern" <<<"$out" && [ ! -e "$tmp/refused" ]; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
+    echo "FAIL: $setting hns train $* -> exit $rc (want 2 and no run folder), output: $out"
+  fi
+}
+# srun without an MPI plugin starts plain processes, each of which would train the whole run alone: refused.
+refused_start SLURM_STEP_NUM_TASKS=4 "started by srun as 4 tasks without MPI"
 # HNS_BF16_KERNEL picks the bf16 kernel: an unknown value, or amx on a CPU without AMX-BF16 tiles, is refused
-# when a bf16 run starts (exit 2, no run folder). Only where the CPU has AVX512-BF16 (elsewhere bf16 itself is
-# refused first).
+# when a bf16 run starts. Only where the CPU has AVX512-BF16 (elsewhere bf16 itself is refused first).
 if grep -qw avx512_bf16 /proc/cpuinfo; then
-  kernels=(bogus)
-  grep -qw amx_bf16 /proc/cpuinfo || kernels+=(amx)
-  for k in "${kernels[@]}"; do
-    out="$(HNS_BF16_KERNEL="$k" "$hns" train --config "$tmp/train.json" --precision bf16 --iterations 1 \
-      --out "$tmp/kernel" 2>&1)"
-    rc=$?
-    if [ "$rc" -eq 2 ] && grep -q "HNS_BF16_KERNEL.*$k" <<<"$out" && [ ! -e "$tmp/kernel" ]; then
-      passed=$((passed + 1))
-    else
-      failed=$((failed + 1))
-      echo "FAIL: train --precision bf16 with HNS_BF16_KERNEL=$k -> exit $rc, output: $out"
-    fi
-  done
+  refused_start HNS_BF16_KERNEL=bogus "HNS_BF16_KERNEL='bogus'" --precision bf16
+  grep -qw amx_bf16 /proc/cpuinfo || refused_start HNS_BF16_KERNEL=amx "HNS_BF16_KERNEL=amx" --precision bf16
 fi
 # A build without MPI started by an MPI launcher as one of several processes (its environment says so):
-# refused, with no run folder (each process would train the whole run alone). Only where hns has no MPI: an
-# MPI build would join the job, and there is none here.
+# refused (each process would train the whole run alone). Only where hns has no MPI: an MPI build would join
+# the job, and there is none here.
 if [ "$mpi" = no-mpi ]; then
   for launcher in OMPI_COMM_WORLD_SIZE PMI_SIZE PMIX_SIZE; do
-    out="$(env "$launcher=3" "$hns" train --config "$tmp/train.json" --iterations 1 --out "$tmp/mpirun" 2>&1)"
-    rc=$?
-    if [ "$rc" -eq 2 ] && grep -q "built without MPI.*one of 3 processes" <<<"$out" && [ ! -e "$tmp/mpirun" ]; then
-      passed=$((passed + 1))
-    else
-      failed=$((failed + 1))
-      echo "FAIL: train without MPI as one of 3 processes ($launcher) -> exit $rc, output: $out"
-    fi
+    refused_start "$launcher=3" "built without MPI.*one of 3 processes"
   done
 fi
 cp "$tmp/init/checkpoint.bin" "$tmp/init-good.bin"
