@@ -2,6 +2,7 @@
 // nn/layers.hpp declares them.
 #include "nn/layers.hpp"
 
+#include "nn/bf16_gemm.hpp"
 #include "nn/row_ops.hpp"
 #include "nn/simd.hpp"
 #include "nn/transpose16.hpp"
@@ -45,6 +46,8 @@ void SelfAttention::Buffers::bind(Arena& arena) {
   const size_t ld = attention_key_stride(entities);
   kt = arena.take(dh * ld);
   scores = arena.take(static_cast<size_t>(entities) * ld);
+  scratch16 =
+      reinterpret_cast<bf16::bf16_t*>(arena.take((bf16::attention_scratch_elems(entities, int(dh)) + 1) / 2));
 }
 
 SelfAttention::SelfAttention(ParamLayout& layout, const std::string& name, int width, int heads, bool pre_ln,
@@ -175,6 +178,23 @@ void weighted_rows(const float* w, ptrdiff_t w_out, ptrdiff_t w_stride, int coun
                            out + o * out_stride, out_stride);
 }
 
+// True where the attention's scores (q k^T forward, da v^T backward) are bf16 products: where the layers'
+// products are (bf16 weights) and run on vdpbf16ps, for an even head width. Under the AMX kernels they stay
+// float: a head's few keys fill a fraction of a tile, and the one Xeon measured ran vdpbf16ps below its float
+// FMA (src/nn/README.md).
+bool bf16_scores(const Weights& params, ptrdiff_t dh) {
+  return params.bf16() && bf16::kernel() == bf16::Kernel::kAvx512Bf16 && dh % 2 == 0;
+}
+
+// Rows [first, last) of x (row stride `stride` floats, contiguous) toward the cache: the next attention row's
+// compact rows while this one computes. They were written by a product over the whole chunk and may have
+// left the core's caches, and a head reads a narrow slice of each, a pattern the prefetchers follow late.
+void prefetch_rows(const float* x, ptrdiff_t stride, int first, int last) {
+  const char* begin = reinterpret_cast<const char*>(x + first * stride);
+  const char* end = reinterpret_cast<const char*>(x + last * stride);
+  for (const char* p = begin; p < end; p += 64) _mm_prefetch(p, _MM_HINT_T0);
+}
+
 // Wqk [d, 2d] and bqk [2d] (columns interleaved [heads, dh, (q, k)]) into out [d + 1, 2d]: W's rows, then
 // the bias, with column h * dh + i of q at h * dh + i and that of k at d + h * dh + i.
 void permute_qk(const float* w, const float* b, int d, float* out) {
@@ -272,17 +292,27 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   const ptrdiff_t qk_stride = 2 * d;
   std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
+  const bool bf16_core = bf16_scores(params, dh);
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
+    if (r + 1 < rows) {
+      prefetch_rows(bufs.qk, qk_stride, bufs.offset[r + 1], bufs.offset[r + 2]);
+      prefetch_rows(bufs.v, d, bufs.offset[r + 1], bufs.offset[r + 2]);
+    }
     // Per head: each query against all keys at once (keys transposed), softmax, p·V in registers.
     const int ld = attention_key_stride(m);
     for (int h = 0; h < heads_; ++h) {
       const float* qh = bufs.qk + c0 * qk_stride + h * dh;      // row i: qh + i * qk_stride
       const float* kh = bufs.qk + c0 * qk_stride + d + h * dh;  // row j: kh + j * qk_stride
       float* p = bufs.probs + static_cast<ptrdiff_t>(r * heads_ + h) * e_count * e_count;
-      transpose_keys(kh, qk_stride, m, static_cast<int>(dh), ld, bufs.kt);
-      queries_times_keys(qh, qk_stride, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      if (bf16_core) {
+        bf16::attention_scores(qh, qk_stride, kh, qk_stride, m, static_cast<int>(dh), bufs.scores, ld,
+                               bufs.scratch16);
+      } else {
+        transpose_keys(kh, qk_stride, m, static_cast<int>(dh), ld, bufs.kt);
+        queries_times_keys(qh, qk_stride, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      }
       for (int i = 0; i < m; ++i)
         kernels::masked_softmax(bufs.scores + i * ld, bufs.ones, scale, m, p + i * e_count);
       // att_i = sum_j p[i, j] v_j for every query i.
@@ -334,9 +364,15 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
   zero_mat(Mat(bufs.d_v, n, d));
   std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
+  const bool bf16_core = bf16_scores(params, dh);
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
+    if (r + 1 < rows) {
+      prefetch_rows(bufs.qk, qk_stride, bufs.offset[r + 1], bufs.offset[r + 2]);
+      prefetch_rows(bufs.v, d, bufs.offset[r + 1], bufs.offset[r + 2]);
+      prefetch_rows(bufs.d_att, d, bufs.offset[r + 1], bufs.offset[r + 2]);
+    }
     for (int h = 0; h < heads_; ++h) {
       const float* qh = bufs.qk + c0 * qk_stride + h * dh;
       const float* kh = bufs.qk + c0 * qk_stride + d + h * dh;
@@ -347,8 +383,12 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
       const int ld = attention_key_stride(m);
       const float* vh = bufs.v + c0 * d + h * dh;
       const float* da = bufs.d_att + c0 * d + h * dh;
-      transpose_keys(vh, d, m, static_cast<int>(dh), ld, bufs.kt);
-      queries_times_keys(da, d, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      if (bf16_core) {
+        bf16::attention_scores(da, d, vh, d, m, static_cast<int>(dh), bufs.scores, ld, bufs.scratch16);
+      } else {
+        transpose_keys(vh, d, m, static_cast<int>(dh), ld, bufs.kt);
+        queries_times_keys(da, d, m, static_cast<int>(dh), bufs.kt, ld, bufs.scores);
+      }
       for (int i = 0; i < m; ++i)
         kernels::masked_softmax_backward(p + i * e_count, bufs.scores + i * ld, scale, m,
                                          bufs.d_p + i * e_count);

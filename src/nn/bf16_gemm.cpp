@@ -208,6 +208,81 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
     }
 }
 
+// ---- the attention's scores (vdpbf16ps only)
+
+// Queries i0 .. i0 + kGroup - 1 (bf16 pairs, k2 per query at qb) against one block of 16 keys (kt: k2 rows
+// of 16 dwords), each score one vdpbf16ps chain over the pairs in order, its first `lanes` keys stored.
+template <int kGroup>
+HNS_BF16_INLINE void score_group(const Dword* qb, int k2, const bf16_t* kt, __mmask16 lanes, float* out,
+                                 ptrdiff_t ld) {
+  __m512 acc[kGroup];
+  for (int g = 0; g < kGroup; ++g) acc[g] = _mm512_setzero_ps();
+  for (int p = 0; p < k2; ++p) {
+    const __m512bh kv =
+        reinterpret_cast<__m512bh>(_mm512_loadu_si512(kt + 2 * static_cast<ptrdiff_t>(p) * 16));
+    for (int g = 0; g < kGroup; ++g)
+      acc[g] = _mm512_dpbf16_ps(acc[g], reinterpret_cast<__m512bh>(_mm512_set1_epi32(qb[g * k2 + p])), kv);
+  }
+  for (int g = 0; g < kGroup; ++g) _mm512_mask_storeu_ps(out + g * ld, lanes, acc[g]);
+}
+
+// dh floats at x as bf16 pairs at out (k2 = dh / 2 dwords), 32 at a time.
+HNS_BF16_INLINE void convert_pairs(const float* x, int dh, bf16_t* out) {
+  for (int c = 0; c < dh; c += 32) {
+    const __m512i v = cvt32(load_masked(x + c, dh - c), load_masked(x + c + 16, dh - c - 16));
+    const int pairs_here = std::min(16, (dh - c) / 2);
+    _mm512_mask_storeu_epi32(out + c, static_cast<__mmask16>((1u << pairs_here) - 1u), v);
+  }
+}
+
+HNS_BF16_TARGET void attention_scores_avx512(const float* q, ptrdiff_t q_stride, const float* k,
+                                             ptrdiff_t k_stride, int m, int dh, float* out, ptrdiff_t ld,
+                                             bf16_t* scratch) {
+  const int k2 = dh / 2;
+  bf16_t* qb = scratch;                                       // [m, k2] dwords
+  bf16_t* kt = scratch + 2 * static_cast<ptrdiff_t>(m) * k2;  // [k2, 16] dwords: one block of keys
+  for (int i = 0; i < m; ++i) convert_pairs(q + i * q_stride, dh, qb + 2 * static_cast<ptrdiff_t>(i) * k2);
+  const Dword* q32 = reinterpret_cast<const Dword*>(qb);
+  for (int j0 = 0; j0 < m; j0 += 16) {
+    // 16 keys' pairs, converted as they are loaded, transposed in registers: kt's row p holds pair p of every
+    // key of the block (the missing keys as zero lanes).
+    const int keys = std::min(16, m - j0);
+    for (int p0 = 0; p0 < k2; p0 += 16) {
+      const int c0 = 2 * p0;
+      // Unrolled, so that r stays in registers (a loop indexing it by a variable puts it on the stack).
+      __m512i r[16];
+#pragma GCC unroll 16
+      for (int j = 0; j < 16; ++j) {
+        const float* kj = k + (j0 + j) * k_stride + c0;
+        r[j] = j < keys ? cvt32(load_masked(kj, dh - c0), load_masked(kj + 16, dh - c0 - 16))
+                        : _mm512_setzero_si512();
+      }
+      transpose16(r);
+      const int rows_here = std::min(16, k2 - p0);
+#pragma GCC unroll 16
+      for (int c = 0; c < 16; ++c)
+        if (c < rows_here) _mm512_storeu_si512(kt + 2 * static_cast<ptrdiff_t>(p0 + c) * 16, r[c]);
+    }
+    const __mmask16 lanes = static_cast<__mmask16>((1u << keys) - 1u);
+    float* o = out + j0;
+    int i = 0;
+    for (; i + 4 <= m; i += 4) score_group<4>(q32 + i * k2, k2, kt, lanes, o + i * ld, ld);
+    switch (m - i) {
+      case 3:
+        score_group<3>(q32 + i * k2, k2, kt, lanes, o + i * ld, ld);
+        break;
+      case 2:
+        score_group<2>(q32 + i * k2, k2, kt, lanes, o + i * ld, ld);
+        break;
+      case 1:
+        score_group<1>(q32 + i * k2, k2, kt, lanes, o + i * ld, ld);
+        break;
+      default:
+        break;
+    }
+  }
+}
+
 // ---- packing
 
 // Row pair (r0, r1) of B (r1 may be null: zeros), columns [0, n) as floats, into every panel's pair p (kp
@@ -493,6 +568,17 @@ void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c
     return amx::gemm(a, rows, kp, b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
   }
   gemm_avx512(at, {1, transposed_rows(rows)}, rows, k, b, n, c, ldc, accumulate);
+}
+
+size_t attention_scratch_elems(int m, int dh) {
+  return 2 * static_cast<size_t>(pairs(dh)) * (static_cast<size_t>(m) + 16);
+}
+
+void attention_scores(const float* q, ptrdiff_t q_stride, const float* k, ptrdiff_t k_stride, int m, int dh,
+                      float* out, ptrdiff_t ld, bf16_t* scratch) {
+  if (tiles(kernel()) || dh % 2 != 0)
+    throw std::logic_error("attention_scores: the vdpbf16ps kernel and an even head width only");
+  attention_scores_avx512(q, q_stride, k, k_stride, m, dh, out, ld, scratch);
 }
 
 bool rows_outer_order(bool accumulate, int rows, int k, int n) {

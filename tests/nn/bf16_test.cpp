@@ -12,6 +12,8 @@
 #include <vector>
 
 #include "nn/bf16_gemm.hpp"
+#include "nn/kernels.hpp"
+#include "nn/layers.hpp"
 #include "nn/precision.hpp"
 #include "nn/products.hpp"
 
@@ -419,6 +421,93 @@ TEST_P(NnBf16Kernel, LayerProductsStayWithinTheRoundingBoundOfFloat) {
         for (int m = 0; m < rows; ++m)
           mag[size_t(i) * out + j] += std::fabs(x[size_t(m) * in + i] * dz[size_t(m) * out + j]);
     check(g2, g1, mag, rows, "x^T dz");
+  }
+}
+
+// The attention's scores for one head (nn/attention.cpp): queries and keys read from float rows a stride
+// apart make the documented bf16 product, for key counts around the 16-key blocks and head widths around a
+// block of 16 pairs; nothing past the m columns of a score row is written. The AMX kernels refuse it (the
+// attention keeps float scores there), and so does an odd head width.
+TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
+  std::vector<bf16_t> scratch(bf16::attention_scratch_elems(70, 64), kNan);
+  if (amx()) {
+    std::vector<float> x(64), c(4);
+    EXPECT_THROW(bf16::attention_scores(x.data(), 2, x.data(), 2, 2, 2, c.data(), 2, scratch.data()),
+                 std::logic_error);
+    return;
+  }
+  for (int dh : {2, 8, 30, 32, 34, 64})
+    for (int m : {1, 2, 3, 5, 15, 16, 17, 33, 70}) {
+      // Queries at column 2 and keys at column 4 + dh of m rows of cols floats (a head's slices of q and k).
+      const int cols = 2 * dh + 7, ldc = m + 3;
+      const std::vector<float> x = random_floats(size_t(m) * cols, uint32_t(dh * 1000 + m));
+      std::vector<float> got(size_t(m) * ldc, 777.0f), want(size_t(m) * m);
+      bf16::attention_scores(x.data() + 2, cols, x.data() + 4 + dh, cols, m, dh, got.data(), ldc,
+                             scratch.data());
+      std::vector<float> q(size_t(m) * dh), keys_t(size_t(dh) * m);
+      for (int i = 0; i < m; ++i)
+        for (int c = 0; c < dh; ++c) {
+          q[size_t(i) * dh + c] = x[size_t(i) * cols + 2 + c];
+          keys_t[size_t(c) * m + i] = x[size_t(i) * cols + 4 + dh + c];
+        }
+      naive_product(q, keys_t, m, dh, m, want, false);
+      const std::string where = "dh " + std::to_string(dh) + " m " + std::to_string(m);
+      for (int i = 0; i < m; ++i) {
+        for (int j = 0; j < m; ++j)
+          ASSERT_NO_FATAL_FAILURE(expect_product(got[size_t(i) * ldc + j], want[size_t(i) * m + j], where));
+        for (int j = m; j < ldc; ++j) ASSERT_EQ(got[size_t(i) * ldc + j], 777.0f) << where;
+      }
+    }
+  std::vector<float> x(16), c(4);
+  EXPECT_THROW(bf16::attention_scores(x.data(), 3, x.data(), 3, 2, 3, c.data(), 2, scratch.data()),
+               std::logic_error);
+}
+
+// In a bf16 network the attention layer's probabilities are the softmax of those bf16 products of its own
+// queries and keys with the vdpbf16ps kernel, and of float fma chains (as in fp32) under the AMX kernels: two
+// heads of 32 features, rows with up to 20 keys (more than a 16-key block), some entities masked.
+TEST_P(NnBf16Kernel, AttentionProbabilitiesComeFromTheKernelsScores) {
+  const int rows = 3, e_count = 20, d = 64, heads = 2, dh = d / heads;
+  ParamLayout layout;
+  SelfAttention sa(layout, "a", d, heads, true, true);
+  ParamStore store(layout);
+  store.init(5);
+  PackedWeights packed(store.layout());
+  packed.pack(store.values(), false);
+  std::vector<float> mask = random_floats(size_t(rows) * e_count, 6);
+  for (float& v : mask) v = v < 0.3f ? 1.0f : 0.0f;
+  mask[0] = mask[e_count] = 1.0f;
+  for (int e = 0; e < e_count; ++e) mask[size_t(2) * e_count + e] = 1.0f;  // a row that sees every entity
+  const std::vector<float> x = random_floats(size_t(rows) * e_count * d, 7);
+  Workspace<SelfAttention::Buffers> ws(rows, e_count, d, heads);
+  std::vector<float> y(x.size());
+  sa.forward(Weights(store.values(), &packed), CMat(x.data(), rows * e_count, d), mask.data(), e_count,
+             ws.bufs(), Mat(y.data(), rows * e_count, d));
+  const SelfAttention::Buffers& b = ws.bufs();
+  const std::vector<float> ones(e_count, 1.0f);
+  std::vector<float> scores(e_count), want(e_count);
+  for (int r = 0; r < rows; ++r) {
+    const int c0 = b.offset[r], m = b.offset[r + 1] - c0;
+    for (int h = 0; h < heads; ++h)
+      for (int i = 0; i < m; ++i) {
+        const float* q = b.qk + size_t(c0 + i) * 2 * d + h * dh;
+        for (int j = 0; j < m; ++j) {
+          const float* k = b.qk + size_t(c0 + j) * 2 * d + d + h * dh;
+          std::vector<float> qv(q, q + dh), kv(k, k + dh), one(1);
+          if (amx()) {
+            one[0] = 0.0f;
+            for (int c = 0; c < dh; ++c) one[0] = std::fma(q[c], k[c], one[0]);
+          } else {
+            naive_product(qv, kv, 1, dh, 1, one, false);
+          }
+          scores[size_t(j)] = one[0];
+        }
+        kernels::masked_softmax(scores.data(), ones.data(), 1.0f / std::sqrt(float(dh)), m, want.data());
+        const float* got = b.probs + (size_t(r) * heads + h) * e_count * e_count + size_t(i) * e_count;
+        for (int j = 0; j < m; ++j)
+          ASSERT_EQ(std::bit_cast<uint32_t>(got[j]), std::bit_cast<uint32_t>(want[size_t(j)]))
+              << "row " << r << " head " << h << " query " << i << " key " << j;
+      }
   }
 }
 
