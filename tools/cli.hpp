@@ -59,6 +59,10 @@ extern const char* const kHnsCommit;
 // model name (/proc/cpuinfo) and the instruction set the binary runs. Added to every `bench --json`.
 nlohmann::json build_and_machine();
 
+// The checks of check_output_path that need no file system (so they can refuse before a folder the file goes
+// into exists): a name is given, check_path_length, and the name leaves room for PATH.tmp's.
+void check_output_name(const std::string& flag, const std::string& path);
+
 // Refuses (physics::ConfigError naming `flag`) a path longer than PATH_MAX or with a name longer than
 // NAME_MAX, which the file system would refuse only once the work is done.
 void check_path_length(const std::string& flag, const std::string& path);

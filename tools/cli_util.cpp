@@ -24,8 +24,7 @@ namespace fs = std::filesystem;
 void check_output_path(const std::string& flag, const std::string& path,
                        const std::vector<std::string>& inputs) {
   auto reject = [&](const std::string& why) { throw physics::ConfigError(flag + " " + path + ": " + why); };
-  if (path.empty()) reject("an output file name is required");
-  check_path_length(flag, path);
+  check_output_name(flag, path);
   std::error_code ec;
   if (fs::is_directory(path, ec)) reject("is a folder, not a file");
   const fs::path parent = fs::path(path).parent_path().empty() ? fs::path(".") : fs::path(path).parent_path();
@@ -39,11 +38,6 @@ void check_output_path(const std::string& flag, const std::string& path,
   // Whether the file can really be written there (access() says yes for root in /proc, and on a full or
   // read-only mount the answer comes from the write): PATH.tmp, which the atomic write uses, is created and
   // removed.
-  const size_t name_bytes = fs::path(path).filename().native().size();
-  if (name_bytes + 4 > NAME_MAX) {
-    reject("its name is too long to write PATH.tmp beside it first (" + std::to_string(name_bytes) +
-           " bytes; at most " + std::to_string(NAME_MAX - 4) + ")");
-  }
   check_not_an_input(flag, path, inputs);
   try {
     ::close(ppo::create_temp_file(path + ".tmp"));
@@ -65,6 +59,17 @@ void check_not_an_input(const std::string& flag, const std::string& path,
     if (!in.empty() && p == out) reject("is also an input of this command; choose another file");
     if (!in.empty() && p == out_tmp)
       reject("is written through " + path + ".tmp, which is an input of this command; choose another file");
+  }
+}
+
+void check_output_name(const std::string& flag, const std::string& path) {
+  if (path.empty()) throw physics::ConfigError(flag + ": an output file name is required");
+  check_path_length(flag, path);
+  const size_t name_bytes = fs::path(path).filename().native().size();
+  if (name_bytes + 4 > NAME_MAX) {
+    throw physics::ConfigError(
+        flag + " " + path + ": its name is too long to write PATH.tmp beside it first (" +
+        std::to_string(name_bytes) + " bytes; at most " + std::to_string(NAME_MAX - 4) + ")");
   }
 }
 

@@ -363,7 +363,7 @@ void check_profile(const TrainOptions& opt, const RunSetup& run, bool early) {
   std::error_code ec;
   const fs::path parent = fs::weakly_canonical(fs::path(opt.profile), ec).parent_path();
   if (early && !fs::exists(dir, ec) && parent == fs::weakly_canonical(dir, ec)) {
-    check_path_length("--profile", opt.profile);
+    check_output_name("--profile", opt.profile);
     check_not_an_input("--profile", opt.profile, inputs);
     return;
   }

@@ -46,6 +46,18 @@ TEST(NnObsNormalizer, DebiasedEmaAndFloor) {
   EXPECT_FLOAT_EQ(n.view().inv_std[kObsSelf][0], static_cast<float>(1.0 / std::sqrt(sq - mean * mean)));
 }
 
+// The default beta is the original's 0.99999 (src/nn/README.md, docs/game.md): after batches with means 2 and
+// 4 the debiased mean is (2 beta + 4) / (1 + beta), 2.999995 (0.9999 would give 3.00005).
+TEST(NnObsNormalizer, DefaultBetaIsTheOriginals) {
+  ObsNormalizer n(tiny_shape(1, 3));
+  const std::vector<float> self1 = {2, 0, 2, 0}, self2 = {4, 0, 4, 0};
+  n.update(self1.data(), nullptr, nullptr, nullptr, nullptr, nullptr, 2);
+  n.update(self2.data(), nullptr, nullptr, nullptr, nullptr, nullptr, 2);
+  const double beta = 0.99999;
+  EXPECT_NEAR(n.mean(kObsSelf, 0), (2.0 * beta + 4.0) / (1.0 + beta), 1e-12);
+  EXPECT_EQ(kObsNormBeta, beta);
+}
+
 // Padding rows of a batch (agents that do not exist in their env) do not move the statistics: a masked
 // update equals the update from the real rows alone, and an update with no real row changes nothing.
 TEST(NnObsNormalizer, RowMaskSkipsPaddingRows) {

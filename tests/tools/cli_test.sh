@@ -225,6 +225,14 @@ else
   failed=$((failed + 1))
   echo "FAIL: a refused --profile changed the run folder or left a new one: $(ls -a "$tmp/newprof" 2>&1)"
 fi
+# A profile in the new run folder whose name leaves no room for PATH.tmp's: refused before the folder is made.
+long_name=$(printf 'p%.0s' $(seq 248)).json
+expect_fail 2 "too long to write PATH.tmp" train --config "$tmp/train.json" --out "$tmp/longprof" \
+  --profile "$tmp/longprof/$long_name"
+[ ! -e "$tmp/longprof" ] || {
+  failed=$((failed + 1))
+  echo "FAIL: a --profile refused for its name left its new run folder: $(ls -A "$tmp/longprof")"
+}
 mkdir "$tmp/emptyprof"
 expect_fail 2 "cannot be written" train --config "$tmp/train.json" --out "$tmp/emptyprof" --profile /proc/hns-profile
 [ -z "$(ls -A "$tmp/emptyprof")" ] || {
