@@ -576,8 +576,9 @@ size_t attention_scratch_elems(int m, int dh) {
 
 void attention_scores(const float* q, ptrdiff_t q_stride, const float* k, ptrdiff_t k_stride, int m, int dh,
                       float* out, ptrdiff_t ld, bf16_t* scratch) {
-  if (tiles(kernel()) || dh % 2 != 0)
-    throw std::logic_error("attention_scores: the vdpbf16ps kernel and an even head width only");
+  if (!available() || tiles(kernel()) || dh % 2 != 0)
+    throw std::logic_error(
+        "attention_scores: the vdpbf16ps kernel (AVX512-BF16) and an even head width only");
   attention_scores_avx512(q, q_stride, k, k_stride, m, dh, out, ld, scratch);
 }
 

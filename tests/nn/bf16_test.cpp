@@ -429,7 +429,7 @@ TEST_P(NnBf16Kernel, LayerProductsStayWithinTheRoundingBoundOfFloat) {
 // block of 16 pairs; nothing past the m columns of a score row is written. The AMX kernels refuse it (the
 // attention keeps float scores there), and so does an odd head width.
 TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
-  std::vector<bf16_t> scratch(bf16::attention_scratch_elems(70, 64), kNan);
+  std::vector<bf16_t> scratch(bf16::attention_scratch_elems(2, 2), kNan);
   if (amx()) {
     std::vector<float> x(64), c(4);
     EXPECT_THROW(bf16::attention_scores(x.data(), 2, x.data(), 2, 2, 2, c.data(), 2, scratch.data()),
@@ -442,8 +442,13 @@ TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
       const int cols = 2 * dh + 7, ldc = m + 3;
       const std::vector<float> x = random_floats(size_t(m) * cols, uint32_t(dh * 1000 + m));
       std::vector<float> got(size_t(m) * ldc, 777.0f), want(size_t(m) * m);
+      // Scratch of exactly the stated size, NaN, then canaries that must survive.
+      const size_t need = bf16::attention_scratch_elems(m, dh);
+      scratch.assign(need + 512, kNan);
+      std::fill(scratch.begin() + ptrdiff_t(need), scratch.end(), bf16_t{0x1234});
       bf16::attention_scores(x.data() + 2, cols, x.data() + 4 + dh, cols, m, dh, got.data(), ldc,
                              scratch.data());
+      for (size_t e = need; e < scratch.size(); ++e) ASSERT_EQ(scratch[e], 0x1234) << "past the scratch";
       std::vector<float> q(size_t(m) * dh), keys_t(size_t(dh) * m);
       for (int i = 0; i < m; ++i)
         for (int c = 0; c < dh; ++c) {
