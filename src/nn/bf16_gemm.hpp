@@ -98,10 +98,11 @@ void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c
              bool accumulate);
 
 // The attention's scores for one head (nn/attention.cpp), with the vdpbf16ps kernel only (std::logic_error
-// under the AMX kernels, on a CPU without AVX512-BF16, or for an odd dh): out[i * ld + j] for i, j < m is the bf16 product of query i (dh
-// floats at q + i * q_stride) and key j (at k + j * k_stride), one vdpbf16ps chain over the pairs in order,
-// as gemm sums an element; nothing else of out is written. The operands are converted as they are read and
-// the keys transposed in registers, 16 at a time; scratch holds attention_scratch_elems(m, dh) elements.
+// under the AMX kernels, on a CPU without AVX512-BF16, or for an odd dh): out[i * ld + j] for i, j < m is the
+// bf16 product of query i (dh floats at q + i * q_stride) and key j (at k + j * k_stride), one vdpbf16ps
+// chain over the pairs in order, as gemm sums an element; nothing else of out is written. The operands are
+// converted as they are read and the keys transposed in registers, 16 at a time; scratch holds
+// attention_scratch_elems(m, dh) elements.
 size_t attention_scratch_elems(int m, int dh);
 void attention_scores(const float* q, ptrdiff_t q_stride, const float* k, ptrdiff_t k_stride, int m, int dh,
                       float* out, ptrdiff_t ld, bf16_t* scratch);

@@ -229,8 +229,8 @@ class SelfAttention {
     float* d_p = nullptr;       // [E, E]
     float* kt = nullptr;        // [dh, attention_key_stride(E)] one head's keys (or values) transposed
     float* scores = nullptr;    // [E, attention_key_stride(E)] one head's scores, query by query
-    bf16::bf16_t* scratch16 =
-        nullptr;  // bf16 scores' operands (bf16::attention_scratch_elems(E, dh) of them)
+    // The bf16 scores' operands: bf16::attention_scratch_elems(E, dh) elements.
+    bf16::bf16_t* scratch16 = nullptr;
     Buffers() = default;
     Buffers(int rows, int entities, int width, int heads)
         : rows(rows), entities(entities), width(width), heads(heads) {}
