@@ -470,15 +470,18 @@ TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
 
 // In a bf16 network the attention layer's probabilities are the softmax of those bf16 products of its own
 // queries and keys with the vdpbf16ps kernel, and of float fma chains (as in fp32) under the AMX kernels: two
-// heads of 32 features, rows with up to 20 keys (more than a 16-key block), some entities masked.
-TEST_P(NnBf16Kernel, AttentionProbabilitiesComeFromTheKernelsScores) {
+// heads of 32 features, rows with up to 20 keys (more than a 16-key block), some entities masked. The
+// backward pass's scores (da·v, the probabilities' gradient before the softmax) are the same product: after
+// it, the score buffer holds those of the last row (which sees all 20 entities) and head.
+TEST_P(NnBf16Kernel, AttentionScoresInBothPassesAreTheKernelsProducts) {
   const int rows = 3, e_count = 20, d = 64, heads = 2, dh = d / heads;
   ParamLayout layout;
   SelfAttention sa(layout, "a", d, heads, true, true);
   ParamStore store(layout);
   store.init(5);
   PackedWeights packed(store.layout());
-  packed.pack(store.values(), false);
+  packed.pack(store.values(), true);
+  const Weights w16(store.values(), &packed);
   std::vector<float> mask = random_floats(size_t(rows) * e_count, 6);
   for (float& v : mask) v = v < 0.3f ? 1.0f : 0.0f;
   mask[0] = mask[e_count] = 1.0f;
@@ -486,27 +489,28 @@ TEST_P(NnBf16Kernel, AttentionProbabilitiesComeFromTheKernelsScores) {
   const std::vector<float> x = random_floats(size_t(rows) * e_count * d, 7);
   Workspace<SelfAttention::Buffers> ws(rows, e_count, d, heads);
   std::vector<float> y(x.size());
-  sa.forward(Weights(store.values(), &packed), CMat(x.data(), rows * e_count, d), mask.data(), e_count,
-             ws.bufs(), Mat(y.data(), rows * e_count, d));
+  sa.forward(w16, CMat(x.data(), rows * e_count, d), mask.data(), e_count, ws.bufs(),
+             Mat(y.data(), rows * e_count, d));
   const SelfAttention::Buffers& b = ws.bufs();
+  // One score as the kernel in use defines it: a bf16 chain over pairs, or a float fma chain under AMX.
+  auto score = [&](const float* a, const float* k) {
+    std::vector<float> av(a, a + dh), kv(k, k + dh), one(1, 0.0f);
+    if (amx()) {
+      for (int c = 0; c < dh; ++c) one[0] = std::fma(a[c], k[c], one[0]);
+    } else {
+      naive_product(av, kv, 1, dh, 1, one, false);
+    }
+    return one[0];
+  };
   const std::vector<float> ones(e_count, 1.0f);
   std::vector<float> scores(e_count), want(e_count);
   for (int r = 0; r < rows; ++r) {
     const int c0 = b.offset[r], m = b.offset[r + 1] - c0;
     for (int h = 0; h < heads; ++h)
       for (int i = 0; i < m; ++i) {
-        const float* q = b.qk + size_t(c0 + i) * 2 * d + h * dh;
-        for (int j = 0; j < m; ++j) {
-          const float* k = b.qk + size_t(c0 + j) * 2 * d + d + h * dh;
-          std::vector<float> qv(q, q + dh), kv(k, k + dh), one(1);
-          if (amx()) {
-            one[0] = 0.0f;
-            for (int c = 0; c < dh; ++c) one[0] = std::fma(q[c], k[c], one[0]);
-          } else {
-            naive_product(qv, kv, 1, dh, 1, one, false);
-          }
-          scores[size_t(j)] = one[0];
-        }
+        for (int j = 0; j < m; ++j)
+          scores[size_t(j)] =
+              score(b.qk + size_t(c0 + i) * 2 * d + h * dh, b.qk + size_t(c0 + j) * 2 * d + d + h * dh);
         kernels::masked_softmax(scores.data(), ones.data(), 1.0f / std::sqrt(float(dh)), m, want.data());
         const float* got = b.probs + (size_t(r) * heads + h) * e_count * e_count + size_t(i) * e_count;
         for (int j = 0; j < m; ++j)
@@ -514,6 +518,20 @@ TEST_P(NnBf16Kernel, AttentionProbabilitiesComeFromTheKernelsScores) {
               << "row " << r << " head " << h << " query " << i << " key " << j;
       }
   }
+  const std::vector<float> dout = random_floats(y.size(), 8);
+  std::vector<float> dx(x.size());
+  sa.backward(w16, store.grads(), CMat(x.data(), rows * e_count, d), mask.data(), e_count, ws.bufs(),
+              CMat(y.data(), rows * e_count, d), CMat(dout.data(), rows * e_count, d),
+              Mat(dx.data(), rows * e_count, d));
+  const int r = rows - 1, h = heads - 1, c0 = b.offset[r], m = b.offset[r + 1] - c0;
+  ASSERT_EQ(m, e_count);
+  const int ld = attention_key_stride(m);
+  for (int i = 0; i < m; ++i)
+    for (int j = 0; j < m; ++j) {
+      const float want_ij = score(b.d_att + size_t(c0 + i) * d + h * dh, b.v + size_t(c0 + j) * d + h * dh);
+      ASSERT_EQ(std::bit_cast<uint32_t>(b.scores[size_t(i) * ld + j]), std::bit_cast<uint32_t>(want_ij))
+          << "backward, query " << i << " key " << j;
+    }
 }
 
 TEST(NnPrecision, ChooserRefusesBf16WithoutTheFeatureAndResolvesAuto) {
