@@ -291,8 +291,8 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
   v_.forward(params, xin, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   const ptrdiff_t qk_stride = 2 * d;
-  std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
   const bool bf16_core = bf16_scores(params, dh);
+  if (!bf16_core) std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);  // the float scores' keys
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
@@ -363,8 +363,8 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   }
   mlp1_.backward_preact(params, grads, CMat(bufs.att, n, d), d_res, Mat(bufs.d_att, n, d), false);
   zero_mat(Mat(bufs.d_v, n, d));
-  std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);
   const bool bf16_core = bf16_scores(params, dh);
+  if (!bf16_core) std::fill_n(bufs.kt, dh * attention_key_stride(entities), 0.0f);  // the float scores' keys
   for (int r = 0; r < rows; ++r) {
     const ptrdiff_t c0 = bufs.offset[r];
     const int m = bufs.offset[r + 1] - bufs.offset[r];
