@@ -632,6 +632,7 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   check_init_from(opt, run);
   run.cfg.validate();
   resolve_precision(run);
+  run.cfg.chunk_sequences = run.cfg.train_chunk();  // config.json names the chunk that runs (0: the model's)
   check_run_memory(run.cfg, comm);
   const ppo::TrainConfig& cfg = run.cfg;
 

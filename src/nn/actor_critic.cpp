@@ -103,8 +103,14 @@ ActorCritic::ActorCritic(const NetConfig& cfg, ParallelConfig parallel)
       heads_(cfg.action_heads),
       params_(build_layout(cfg, policy_, value_)),
       train_pool_(std::make_unique<WorkPool>()) {
-  HNS_NN_CHECK(par_.infer_chunk_agents > 0 && par_.train_chunk_sequences > 0 && par_.grad_groups > 0,
-               "parallel chunk sizes must be positive");
+  HNS_NN_CHECK(
+      par_.infer_chunk_agents > 0 && par_.train_chunk_sequences >= 0 && par_.grad_groups > 0,
+      "parallel chunk sizes must be positive (a training chunk of 0 sequences: the network's default)");
+  if (par_.train_chunk_sequences == 0) par_.train_chunk_sequences = default_train_chunk(cfg);
+}
+
+int default_train_chunk(const NetConfig& cfg) {
+  return cfg.embed <= 64 ? 4 : 16;
 }
 
 ActorCritic::~ActorCritic() = default;

@@ -61,13 +61,21 @@ inline constexpr int kActRowAlign = 8;
 
 // Fixed work partition (independent of the thread count).
 struct ParallelConfig {
-  int infer_chunk_agents = 64;     // agents per inference task
-  int train_chunk_sequences = 16;  // BPTT sequences per training chunk
+  int infer_chunk_agents = 64;  // agents per inference task
+  // BPTT sequences per training chunk (the unit of the forward and backward passes); 0: the network's
+  // default_train_chunk. Results depend on it (the order of the gradient sums), never on the threads.
+  int train_chunk_sequences = 0;
   // Gradient buffers: the parallel width of training (two tasks each, the policy and the value network), and
   // per minibatch one zeroing and one summing pass over groups x parameters floats (16 groups cost about 5 %
   // of a quadrant paper iteration on 2 cores over 8).
   int grad_groups = 8;
 };
+
+// The training chunk that runs a network fastest, measured on a 2-core AMD Zen 5 (src/nn/README.md "The
+// training chunk per model"): 4 sequences for networks as narrow as the `small` preset (embedding <= 64),
+// whose chunk's activations then stay near the core, and 16 for wider ones such as `paper`, where each
+// chunk's passes over a gradient four times the size outweigh that.
+int default_train_chunk(const NetConfig& cfg);
 
 // What the loss sees of one training chunk: rows [first_row, first_row + rows) of the minibatch.
 struct ChunkOutputs {

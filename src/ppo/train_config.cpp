@@ -51,6 +51,7 @@ void visit_fields(Config& c, F&& f) {
   f("minibatch_chunks", c.minibatch_chunks, true);
   f("bptt", c.bptt, true);
   f("grad_groups", c.grad_groups, true);
+  f("chunk_sequences", c.chunk_sequences, true);
   f("precision", c.precision, true);
   f("lr", c.lr, true);
   f("clip", c.clip, true);
@@ -483,8 +484,9 @@ void TrainConfig::merge_json(std::string_view text, const std::string& origin) {
 }
 
 void TrainConfig::merge_run_json(std::string_view text, const std::string& origin) {
-  grad_groups = 16;    // before the key existed the update always used 16 gradient groups
-  precision = "fp32";  // and the networks' products were all float
+  grad_groups = 16;      // before the key existed the update always used 16 gradient groups
+  chunk_sequences = 16;  // and training chunks of 16 sequences
+  precision = "fp32";    // and the networks' products were all float
   // Before these keys existed (and in a run that writes none of them, see to_json) there was no intrinsic
   // reward and fine-tuning carried the heads.
   intrinsic = "none";
@@ -538,8 +540,12 @@ int TrainConfig::update_blocks() const {
   // The chunks of real agents (a transfer task's spoofed agent slot is no agent and leaves the update).
   const int64_t chunks = int64_t(envs) * world().max_agents() * (rollout_steps() / bptt);
   const int64_t per_minibatch = chunks / std::max(1, minibatches_for(chunks));
-  const int64_t fill = std::max<int64_t>(1, per_minibatch / nn::ParallelConfig{}.train_chunk_sequences);
+  const int64_t fill = std::max<int64_t>(1, per_minibatch / train_chunk());
   return int(std::min({int64_t(grad_groups), int64_t(envs), fill}));
+}
+
+int TrainConfig::train_chunk() const {
+  return chunk_sequences > 0 ? chunk_sequences : nn::default_train_chunk(nn::net_preset(model));
 }
 
 int TrainConfig::minibatches_for(int64_t chunks) const {
@@ -607,11 +613,11 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   // their transposes, or the LSTMs' packed recurrent weights: at most one float per parameter).
   floats += params * (4 + size_t(grad_groups) + 1);
   if (intrinsic == "rnd") floats += 8 * params;  // two more networks, and their optimiser
-  // Per thread: the training chunk's activations of both networks (train_chunk_sequences x bptt rows) with
-  // the bf16 operand scratch (a quarter of them at most), and the inference chunk's (infer_chunk_agents x 1).
-  // (Each thread's training workspace is sized for a whole chunk of train_chunk_sequences sequences.)
-  const size_t train_ws = policy.workspace_floats(par.train_chunk_sequences, bptt) +
-                          value.workspace_floats(par.train_chunk_sequences, bptt);
+  // Per thread: the training chunk's activations of both networks (train_chunk() x bptt rows) with the bf16
+  // operand scratch (a quarter of them at most), and the inference chunk's (infer_chunk_agents x 1). (Each
+  // thread's training workspace is sized for a whole chunk of train_chunk() sequences.)
+  const size_t train_ws =
+      policy.workspace_floats(train_chunk(), bptt) + value.workspace_floats(train_chunk(), bptt);
   const size_t infer_ws =
       policy.workspace_floats(par.infer_chunk_agents, 1) + value.workspace_floats(par.infer_chunk_agents, 1);
   // Training workspaces: one per gradient group running at once (nn::ActorCritic keeps them in a pool), so
@@ -674,6 +680,8 @@ void TrainConfig::validate() const {
   check(epochs >= 1 && epochs <= 100, "epochs", epochs, "must be in [1, 100]");
   check(bptt >= 1 && bptt <= 1000, "bptt", bptt, "must be in [1, 1000]");
   check(grad_groups >= 1 && grad_groups <= 1024, "grad_groups", grad_groups, "must be in [1, 1024]");
+  check(chunk_sequences >= 0 && chunk_sequences <= 1024, "chunk_sequences", chunk_sequences,
+        "must be in [0, 1024] (0 = the model's)");
   check(precision == "fp32" || precision == "bf16" || precision == "auto", "precision", precision,
         "must be one of fp32, bf16, auto");
   check(rollout_steps() % bptt == 0, "bptt", bptt,

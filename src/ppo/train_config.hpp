@@ -53,6 +53,10 @@ struct TrainConfig {
   // Gradient buffers of the update: at most this many threads work on one minibatch, and each is one pass
   // of zeroing and summing 4 bytes per parameter. Results depend on it, never on `threads`.
   int grad_groups = 8;
+  // BPTT sequences per training chunk, the networks' unit of work; 0 = the model's (nn::default_train_chunk:
+  // 4 for small, 16 for paper), which the trainer and `hns train` write in its place. Results depend on it
+  // (the order of the gradient sums), never on `threads` or the rank count.
+  int chunk_sequences = 0;
   // The precision of the networks' matrix products (nn/precision.hpp): "fp32", "bf16" (bf16 operands, float
   // accumulation; needs a CPU with AVX512-BF16) or "auto" (bf16 where the CPU has it, else fp32). `hns train`
   // resolves auto before writing config.json, so a run's files name the precision that ran. The RND
@@ -117,8 +121,10 @@ struct TrainConfig {
   }
   // Blocks of envs of the update (gradient groups; the unit a process of a data-parallel run owns):
   // min(grad_groups, envs), and no more than lets each block's share of a minibatch fill a training chunk of
-  // nn::ParallelConfig::train_chunk_sequences sequences (smaller chunks run the network less efficiently).
+  // train_chunk() sequences (smaller chunks run the network less efficiently).
   int update_blocks() const;
+  // The training chunk in sequences: chunk_sequences, or where that is 0 the model's.
+  int train_chunk() const;
   // Minibatches per epoch for `chunks` chunks holding real agents.
   int minibatches_for(int64_t chunks) const;
 
@@ -132,7 +138,8 @@ struct TrainConfig {
   // `origin` names the source in error messages.
   void merge_json(std::string_view text, const std::string& origin);
   // The same for the config a run was made with (its config.json, a checkpoint's): a key that version did not
-  // have yet takes the value that version used (grad_groups: 16, precision: fp32), not today's default.
+  // have yet takes the value that version used (grad_groups: 16, chunk_sequences: 16, precision: fp32), not
+  // today's default.
   void merge_run_json(std::string_view text, const std::string& origin);
   // Fields that change results when they differ between a checkpoint and the run resuming it.
   // Returns "" when equal, else "FIELD: checkpoint has A, this run has B".

@@ -197,6 +197,9 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
   nc.obs = obs_shape(L);
   nn::ParallelConfig par;
   par.grad_groups = cfg_.grad_groups;
+  // 0 becomes the model's chunk, so config() and the checkpoint name the chunk that ran.
+  cfg_.chunk_sequences = cfg_.train_chunk();
+  par.train_chunk_sequences = cfg_.chunk_sequences;
   net_ = std::make_unique<nn::ActorCritic>(nc, par);
   net_->set_precision(precision);
   net_->params().init(cfg_.seed);

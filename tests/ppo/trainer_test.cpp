@@ -65,6 +65,9 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
   rejects("bptt", "7", "must divide the rollout length");
   rejects("grad_groups", "0", "grad_groups");
   rejects("grad_groups", "2000", "must be in [1, 1024]");
+  rejects("chunk_sequences", "-1",
+          "chunk_sequences = '-1' is invalid: must be in [0, 1024] (0 = the model's)");
+  rejects("chunk_sequences", "1025", "must be in [0, 1024]");
   rejects("precision", "fp16", "precision = 'fp16' is invalid: must be one of fp32, bf16, auto");
   rejects("colour", "red", "unknown key 'colour'");
   rejects("envs", "65536", "agent-step rows in the rollout buffer");  // 80 steps x 65536 envs x 6 slots
@@ -74,9 +77,10 @@ TEST(TrainConfig, RejectsBadValuesNamingTheField) {
 }
 
 // Update blocks (gradient groups, the unit of a rank): min(grad_groups, envs), fewer where a block's share of
-// a minibatch would not fill a 16-sequence chunk.
+// a minibatch would not fill a training chunk (16 sequences here).
 TEST(TrainConfig, UpdateBlocksFillATrainingChunk) {
   TrainConfig c;  // 32 quadrant envs x 4 slots x 8 chunks, 4 minibatches: 256 chunks each
+  c.chunk_sequences = 16;
   EXPECT_EQ(c.update_blocks(), 8);
   c.grad_groups = 32;
   EXPECT_EQ(c.update_blocks(), 16);  // 16 chunks per block and minibatch
@@ -89,6 +93,37 @@ TEST(TrainConfig, UpdateBlocksFillATrainingChunk) {
   EXPECT_EQ(c.update_blocks(), 3);
   c.envs = 2;
   EXPECT_EQ(c.update_blocks(), 1);  // 16 chunks per minibatch in all: one block
+  c.envs = 32;
+  c.grad_groups = 32;
+  c.minibatch_chunks = 128;  // 8 minibatches of 128 chunks
+  EXPECT_EQ(c.update_blocks(), 8);
+  c.chunk_sequences = 8;
+  EXPECT_EQ(c.update_blocks(), 16);
+  c.chunk_sequences = 0;  // the small model's chunk: 4 sequences
+  EXPECT_EQ(c.train_chunk(), 4);
+  EXPECT_EQ(c.update_blocks(), 32);
+}
+
+// The training chunk: chunk_sequences, 0 = the model's (4 for small, 16 for paper). A trainer and `hns train`
+// write the chunk that runs in its place (so a run's files name it and resume with it); it changes results.
+TEST(TrainConfig, ChunkSequencesZeroIsTheModelsChunk) {
+  TrainConfig c;
+  EXPECT_EQ(c.chunk_sequences, 0);
+  EXPECT_EQ(c.train_chunk(), 4);
+  c.model = "paper";
+  EXPECT_EQ(c.train_chunk(), 16);
+  c.chunk_sequences = 6;
+  EXPECT_EQ(c.train_chunk(), 6);
+  TrainConfig d = c;
+  d.chunk_sequences = 16;
+  EXPECT_NE(c.identity_mismatch(d).find("chunk_sequences"), std::string::npos);
+  for (const char* model : {"small", "paper"}) {
+    TrainConfig t = tiny_quadrant();
+    t.model = model;
+    const Trainer trainer(t);
+    EXPECT_EQ(trainer.config().chunk_sequences, std::string(model) == "small" ? 4 : 16) << model;
+    EXPECT_EQ(trainer.net().parallel().train_chunk_sequences, trainer.config().chunk_sequences) << model;
+  }
 }
 
 // The paper sizes an update by its minibatch in chunks: minibatch_chunks splits each epoch into as many equal
@@ -137,9 +172,11 @@ TEST(TrainConfig, JsonRoundTripAndMalformedFiles) {
   TrainConfig old_run;
   old_run.merge_run_json("{\"epochs\": 2}", "config.json");
   EXPECT_EQ(old_run.grad_groups, 16);
+  EXPECT_EQ(old_run.chunk_sequences, 16);  // and chunks of 16 sequences, before chunk_sequences existed
   TrainConfig new_run;
   new_run.merge_run_json(a.to_json(), "config.json");
   EXPECT_EQ(new_run.grad_groups, a.grad_groups);
+  EXPECT_EQ(new_run.chunk_sequences, a.chunk_sequences);
 }
 
 // The config reader takes what the writer writes (a control character in a path is written as \u0009, which

@@ -186,7 +186,7 @@ if "$hns" train --config "$tmp/train.json" --iterations 2 --threads 1 --out "$tm
      num_ramp_lock time_simulate time_observe time_infer time_learn &&
    [ -s "$tmp/run/checkpoint.bin" ] && [ ! -e "$tmp/run/checkpoint.bin.tmp" ] &&
    grep -q '"precision": "fp32"' "$tmp/run/config.json" && head -1 "$tmp/run/metrics.jsonl" | grep -q '"precision": "fp32"' &&
-   grep -q "precision: fp32" "$tmp/log" &&
+   grep -q "precision: fp32" "$tmp/log" && grep -q '"chunk_sequences": 4' "$tmp/run/config.json" &&
    "$hns" train --resume "$tmp/run" --iterations 3 >>"$tmp/log" 2>&1 &&
    [ "$(wc -l <"$tmp/run/metrics.jsonl")" -eq 3 ] && grep -q "resuming" "$tmp/log"; then
   passed=$((passed + 1))
