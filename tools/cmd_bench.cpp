@@ -202,9 +202,18 @@ int run_nn_bench(const BenchOptions& opt) {
   }
   if (opt.masks != "synthetic") measure_scene_masks(opt.masks, opt.seed, o);
   if (!opt.json.empty()) check_output_path("--json", opt.json);
-  std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d chunks x %d steps)\n",
-              opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences,
-              o.train_steps);
+  int chunk = 0;  // the training chunk the trainer would use for this model
+  try {
+    chunk = hns::nn::default_train_chunk(hns::nn::net_preset(opt.nn));
+  } catch (const std::invalid_argument& e) {
+    throw phys::ConfigError(std::string("--nn: ") + e.what());
+  }
+  std::printf(
+      "hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d sequences x %d steps, in chunks of "
+      "%d "
+      "sequences)\n",
+      opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences, o.train_steps,
+      chunk);
   std::printf("  instruction set         %s\n", hns::nn::kernels::isa_description().c_str());
   std::printf("  precision               %s\n", hns::nn::precision_description(o.precision).c_str());
   const hns::nn::MaskDensity& d = o.masks;

@@ -389,7 +389,26 @@ ppo::TrainConfig base_config(const EvalOptions& opt) {
   // The precision that runs here (auto resolved, so eval.json records it and a resume on a CPU that would
   // resolve it otherwise is refused); --set precision=bf16 on a CPU without it: refused now (exit 2).
   base.precision = std::string(nn::precision_name(base.resolve_precision()));
+  // And the training chunk (0: the model's), so eval.json names the chunk its runs trained with.
+  try {
+    base.chunk_sequences = base.train_chunk();
+  } catch (const std::invalid_argument& e) {
+    throw physics::ConfigError(std::string("--model: ") + e.what());
+  }
   return base;
+}
+
+// Whether the evaluation recorded in eval_json is from before the chunk_sequences key (its runs trained with
+// chunks of 16 sequences). False for anything unreadable: read_evaluation reports that.
+bool predates_chunk_key(const fs::path& eval_json) {
+  try {
+    const std::string text = ppo::read_regular_file(eval_json, ppo::kMaxMetricsBytes, "--resume:");
+    if (!replay::json_nesting_within(text)) return false;
+    const json tc = json::parse(text).at("settings").at("train_config");
+    return tc.is_object() && !tc.contains("chunk_sequences");
+  } catch (const std::exception&) {
+    return false;
+  }
 }
 
 // What a resumed evaluation must share with the one it continues: every run's training config but the
@@ -474,10 +493,13 @@ void read_evaluation(const EvalOptions& opt, const fs::path& eval_json, const js
     json old = saved.at("settings");
     const json recorded = old.value("pretrained", json::object());
     old.erase("pretrained");
-    // An evaluation from before the precision key trained every run in fp32.
-    if (old.contains("train_config") && old["train_config"].is_object() &&
-        !old["train_config"].contains("precision"))
-      old["train_config"]["precision"] = "fp32";
+    // An evaluation from before the precision key trained every run in fp32, and from before the chunk key
+    // in chunks of 16 sequences (run_eval resumes such a one with 16).
+    if (old.contains("train_config") && old["train_config"].is_object()) {
+      json& tc = old["train_config"];
+      if (!tc.contains("precision")) tc["precision"] = "fp32";
+      if (!tc.contains("chunk_sequences")) tc["chunk_sequences"] = 16;
+    }
     if (old != settings) {
       throw physics::ConfigError("--resume " + opt.out + ": its settings " + old.dump() +
                                  " differ from these " + settings.dump());
@@ -563,14 +585,20 @@ int run_eval(const EvalOptions& opt) {
   Summary s;
   s.tasks = parse_tasks(opt.tasks);
   std::vector<Condition> conditions = parse_conditions("scratch", opt.pretrained, opt.model);
-  const ppo::TrainConfig base = base_config(opt);
+  ppo::TrainConfig base = base_config(opt);
+  const fs::path dir(opt.out);
+  const fs::path eval_json = dir / "eval.json";
+  // An evaluation from before chunk_sequences continues with the 16 its runs used (unless --set gives one,
+  // which its recorded settings then refuse).
+  const bool chunk_set = std::any_of(opt.sets.begin(), opt.sets.end(), [](const std::string& kv) {
+    return kv.rfind("chunk_sequences=", 0) == 0;
+  });
+  if (opt.resume && !chunk_set && predates_chunk_key(eval_json)) base.chunk_sequences = 16;
   if (opt.seeds < 1 || opt.seeds > 100) {
     throw physics::ConfigError("--seeds " + std::to_string(opt.seeds) + " is invalid: must be in [1, 100]");
   }
   json settings = shared_settings(opt, base);
 
-  const fs::path dir(opt.out);
-  const fs::path eval_json = dir / "eval.json";
   check_out_folder(opt, dir, eval_json);
   std::error_code ec;
   if (fs::exists(eval_json, ec)) {

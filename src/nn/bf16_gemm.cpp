@@ -54,11 +54,11 @@ ptrdiff_t transposed_rows(int rows) {
 // The order of C's tiles. Panels outer (each panel of B stays in L1 while the row tiles pass over it) unless
 // the product accumulates into a C over 512 KB with a B of at most that: a gradient buffer that arrives
 // cold from memory and is read at each tile's start, where nothing overlaps the misses (the LSTM's weight
-// gradients: C 1 MB, k only a chunk's 160 rows). 512 KB is half the L2 of Zen 4/5 (1 MB per core): where C
-// is larger it is unlikely to be cached, and a B that size stays in L2 while every row tile sweeps it. Row
-// tiles outer read each of C's rows along its length, which the hardware prefetcher streams, and take B from
-// L2. On a Zen 5, C cold: 256 x 160 x 1024 from about 270 to 370 GFLOP/s, 160 x 256 x 1024 from 310 to 390
-// (medians of 6 interleaved runs).
+// gradients of `paper`: C 1 MB, k only a chunk's 160 rows). 512 KB is half the L2 of Zen 4/5 (1 MB per core):
+// where C is larger it is unlikely to be cached, and a B that size stays in L2 while every row tile sweeps
+// it. Row tiles outer read each of C's rows along its length, which the hardware prefetcher streams, and take
+// B from L2. On a Zen 5, C cold: 256 x 160 x 1024 from about 270 to 370 GFLOP/s, 160 x 256 x 1024 from 310 to
+// 390 (medians of 6 interleaved runs).
 constexpr size_t kColdBytes = size_t(512) << 10;
 bool rows_outer(bool accumulate, int rows, int k2, int n) {
   const size_t c_bytes = size_t(rows) * size_t(n) * sizeof(float);

@@ -179,7 +179,9 @@ Trainer::Trainer(const TrainConfig& config, Comm* comm) : cfg_(config), buf_(std
                                " update blocks (min(grad_groups, envs), fewer for a small buffer; "
                                "docs/training.md): every rank needs a "
                                "block of envs of its own; use at most " +
-                               std::to_string(blocks_) + " ranks or raise grad_groups (and envs)");
+                               std::to_string(blocks_) +
+                               " ranks or raise grad_groups (and envs; where the buffer is small, lower "
+                               "chunk_sequences)");
   }
   block0_ = int(int64_t(blocks_) * r / R);
   block1_ = int(int64_t(blocks_) * (r + 1) / R);

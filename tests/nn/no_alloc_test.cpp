@@ -89,8 +89,8 @@ TEST_P(NnNoAllocation, WarmActAndForwardBackwardAllocateNothing) {
   // allocate its own structures and fault in its stack, which is TBB's doing, not the network's (a ctest run
   // of the whole suite saw that once). The networks' code paths are the same at any thread count.
   tbb::global_control one_thread(tbb::global_control::max_allowed_parallelism, 1);
-  // The small model at the trainer's shapes: two training chunks of 16 sequences x 10 steps, 64 agents
-  // acting.
+  // The small model at the trainer's shapes: 32 sequences x 10 steps (eight of its 4-sequence training
+  // chunks), 64 agents acting.
   const NetConfig cfg = net_preset("small");
   ActorCritic ac(cfg);
   ac.params().init(3);

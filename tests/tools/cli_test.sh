@@ -242,6 +242,7 @@ expect_fail 2 "cannot be written" train --config "$tmp/train.json" --out "$tmp/e
 expect_fail 2 "seed: checkpoint has 1" train --resume "$tmp/run" --seed 5
 expect_fail 2 "precision: checkpoint has fp32, this run has bf16|precision bf16 needs a CPU with AVX512-BF16" \
   train --resume "$tmp/run" --set precision=bf16
+expect_fail 2 "chunk_sequences: checkpoint has 4, this run has 8" train --resume "$tmp/run" --set chunk_sequences=8
 cp "$tmp/run/checkpoint.bin" "$tmp/good.bin"
 printf 'x' | dd of="$tmp/run/checkpoint.bin" bs=1 seek=200 conv=notrunc status=none
 expect_fail 2 "corrupt" train --resume "$tmp/run" --iterations 4
@@ -494,6 +495,22 @@ cmp -s "$tmp/eval-damaged/eval.html" "$tmp/eval-damaged.html" || {
   failed=$((failed + 1))
   echo "FAIL: a refused eval --resume rewrote eval.html"
 }
+# eval.json names the chunk its runs trained with (the small model's 4); an evaluation from before that key
+# (its runs trained in chunks of 16) resumes with 16 and then names it.
+cp -r "$tmp/eval" "$tmp/eval-old"
+python3 -c "import json,sys; d=json.load(open(sys.argv[1])); del d['settings']['train_config']['chunk_sequences']; json.dump(d, open(sys.argv[1],'w'))" \
+  "$tmp/eval-old/eval.json"
+if python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['settings']['train_config']['chunk_sequences'] == 4" \
+     "$tmp/eval/eval.json" &&
+   "$hns" eval --out "$tmp/eval-old" --tasks lockbox --seeds 2 --iterations 2 --envs 2 --random-episodes 4 \
+     --threads 1 --resume >"$tmp/log" 2>&1 &&
+   python3 -c "import json,sys; assert json.load(open(sys.argv[1]))['settings']['train_config']['chunk_sequences'] == 16" \
+     "$tmp/eval-old/eval.json"; then
+  passed=$((passed + 1))
+else
+  failed=$((failed + 1))
+  echo "FAIL: hns eval's chunk (4 recorded; an evaluation from before the key resumed with 16)"; cat "$tmp/log"
+fi
 cp "$tmp/run/checkpoint.bin" "$tmp/lb.bin"
 expect_fail 2 "condition lb .*changed since its first runs" eval --out "$tmp/eval" --tasks lockbox \
   --seeds 2 --iterations 2 --envs 2 --random-episodes 4 --resume
