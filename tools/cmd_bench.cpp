@@ -208,12 +208,10 @@ int run_nn_bench(const BenchOptions& opt) {
   } catch (const std::invalid_argument& e) {
     throw phys::ConfigError(std::string("--nn: ") + e.what());
   }
-  std::printf(
-      "hns bench --nn %s: %s (inference: %d agents x 1 step; training: %d sequences x %d steps, in chunks of "
-      "%d "
-      "sequences)\n",
-      opt.nn.c_str(), threads_text(opt.threads).c_str(), o.infer_agents, o.train_sequences, o.train_steps,
-      chunk);
+  std::printf("hns bench --nn %s: %s (inference: %d agents x 1 step; ", opt.nn.c_str(),
+              threads_text(opt.threads).c_str(), o.infer_agents);
+  std::printf("training: %d sequences x %d steps, in chunks of %d sequences)\n", o.train_sequences,
+              o.train_steps, chunk);
   std::printf("  instruction set         %s\n", hns::nn::kernels::isa_description().c_str());
   std::printf("  precision               %s\n", hns::nn::precision_description(o.precision).c_str());
   const hns::nn::MaskDensity& d = o.masks;
