@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # hns train's memory estimate (docs/training.md "Memory") against the peak resident memory the run really
 # reaches: never below it (a short machine must get exit 2, not an out-of-memory kill) and not far above it
-# (a machine that has the memory must not be refused), for scenes, models and the horizon/bptt extreme; and an
-# address-space limit (ulimit -v) too small for the run is refused with exit 2 before any work.
+# (a machine that has the memory must not be refused), for scenes, models, precisions and the horizon/bptt
+# extreme; and an address-space limit (ulimit -v) too small for the run is refused with exit 2 before any work.
 # Usage: memory_estimate_test.sh path/to/hns [plain|sanitized]
 set -u
 hns="$1"
@@ -72,6 +72,13 @@ check "full small 8 envs" --scene full --model small --envs 8
 check "quadrant paper 4 envs" --scene quadrant --model paper --envs 4
 check "quadrant small 4 envs, horizon = bptt = 400" --scene quadrant --model small --envs 4 --set horizon=400 \
   --set bptt=400
+# bf16 runs add the packed weights and each thread's operand scratch (where the CPU has AVX512-BF16).
+checks=4
+if grep -qw avx512_bf16 /proc/cpuinfo; then
+  check "quadrant paper 4 envs, bf16" --scene quadrant --model paper --envs 4 --precision bf16
+  check "full small 8 envs, bf16" --scene full --model small --envs 8 --precision bf16
+  checks=6
+fi
 
 # An address-space limit below the estimate: exit 2 naming the limit, nothing trained. The run is one that
 # fits any machine this suite runs on (it ran above with the small model's default chunk of 4 sequences;
@@ -89,4 +96,4 @@ fi
 echo "memory estimate: $passed passed, $failed failed, $skipped skipped (not enough free memory)"
 [ "$failed" -eq 0 ] || exit 1
 # Every run refused for free memory: the estimate was not measured at all.
-[ "$skipped" -lt 4 ] || exit 77
+[ "$skipped" -lt "$checks" ] || exit 77
