@@ -21,8 +21,14 @@ fail() {
   echo "FAIL: $*"
 }
 
-# check NAME ARGS...: one iteration; estimate (MiB, from the start line) >= peak and <= 2.5 peak + 64.
+# check NAME ARGS...: one iteration; estimate (MiB, from the start line) >= peak and <= 2.5 peak + 64. Leaves
+# the two figures in last_est and last_peak (empty when the run was not measured).
+last_est=""
+last_peak=""
 check() {
+  last_est=""
+  last_peak=""
+
   local name="$1"
   shift
   local peak
@@ -58,6 +64,8 @@ PY
     return
   fi
   echo "$name: estimated $est MiB, peak $peak MiB"
+  last_est="$est"
+  last_peak="$peak"
   if [ "$est" -lt "$peak" ]; then
     fail "$name: estimate $est MiB is below the peak $peak MiB"
   elif [ "$est" -gt $((peak * 5 / 2 + 64)) ]; then
@@ -70,14 +78,30 @@ PY
 check "quadrant small 8 envs" --scene quadrant --model small --envs 8
 check "full small 8 envs" --scene full --model small --envs 8
 check "quadrant paper 4 envs" --scene quadrant --model paper --envs 4
+fp32_est="$last_est"
+fp32_peak="$last_peak"
 check "quadrant small 4 envs, horizon = bptt = 400" --scene quadrant --model small --envs 4 --set horizon=400 \
   --set bptt=400
-# bf16 runs add the packed weights and each thread's operand scratch (where the CPU has AVX512-BF16).
+# bf16 runs add the packed weights and each thread's operand scratch (where the CPU has AVX512-BF16). Against
+# the same shape in fp32, the estimate must grow, and the peak by no more than the estimate's growth (16 MiB
+# allowed for the noise of two peaks): the bf16 terms themselves, which are too small a part of the estimate
+# for the bound above to notice one left out.
 checks=4
-if grep -qw avx512_bf16 /proc/cpuinfo; then
+if grep -qsw avx512_bf16 /proc/cpuinfo; then
   check "quadrant paper 4 envs, bf16" --scene quadrant --model paper --envs 4 --precision bf16
+  if [ -n "$last_est" ] && [ -n "$fp32_est" ]; then
+    if [ "$last_est" -le "$fp32_est" ]; then
+      fail "quadrant paper 4 envs: the bf16 estimate ($last_est MiB) is not above fp32's ($fp32_est MiB)"
+    elif [ $((last_peak - fp32_peak)) -gt $((last_est - fp32_est + 16)) ]; then
+      fail "quadrant paper 4 envs: bf16 adds $((last_peak - fp32_peak)) MiB to the peak, the estimate $((last_est - fp32_est))"
+    else
+      passed=$((passed + 1))
+    fi
+  fi
   check "full small 8 envs, bf16" --scene full --model small --envs 8 --precision bf16
   checks=6
+else
+  echo "bf16 cases not run: this CPU has no AVX512-BF16"
 fi
 
 # An address-space limit below the estimate: exit 2 naming the limit, nothing trained. The run is one that
