@@ -28,7 +28,6 @@ last_peak=""
 check() {
   last_est=""
   last_peak=""
-
   local name="$1"
   shift
   local peak
@@ -84,8 +83,8 @@ check "quadrant small 4 envs, horizon = bptt = 400" --scene quadrant --model sma
   --set bptt=400
 # bf16 runs add the packed weights and each thread's operand scratch (where the CPU has AVX512-BF16). Against
 # the same shape in fp32, the estimate must grow, and the peak by no more than the estimate's growth (16 MiB
-# allowed for the noise of two peaks): the bf16 terms themselves, which are too small a part of the estimate
-# for the bound above to notice one left out.
+# allowed for the noise of two peaks). This checks the bf16 terms themselves, which are too small a part of
+# the estimate for the bound above to notice one left out.
 checks=4
 if grep -qsw avx512_bf16 /proc/cpuinfo; then
   check "quadrant paper 4 envs, bf16" --scene quadrant --model paper --envs 4 --precision bf16
