@@ -85,6 +85,7 @@ struct ActorCritic::ThreadWork {
   std::vector<int32_t> index;  // [sequences] an inference chunk's rows, padded
   FloatBuffer state_p;         // [sequences, state width] its LSTM states, padded
   FloatBuffer state_v;
+  GradStage stage_p, stage_v;  // each network's weight gradients over several chunks (training, bf16)
   ThreadWork(const ActorCritic& ac, int seqs, int st)
       : sequences(seqs),
         steps(st),
@@ -310,7 +311,15 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
     ThreadWork& w = *work;
     float* gg = group_grads_[g].data();
     if (group_clear_[g] != 0) group_grads_[g].fill_zero();
+    w.stage_p.clear();
+    w.stage_v.clear();
+    Weights pw = p, vw = p;
+    if (p.bf16() && par_.stage_weight_grads) {
+      pw.stage = &w.stage_p;
+      vw.stage = &w.stage_v;
+    }
     for (int c = group_chunks_[g]; c < group_chunks_[g + 1]; ++c) {
+      const bool last = c + 1 == group_chunks_[g + 1];
       const int first_seq = chunks_[c].first_seq;
       const int n = chunks_[c].sequences;
       const int first_row = first_seq * steps;
@@ -336,12 +345,15 @@ void ActorCritic::compute_groups(const ObsNormView& norm, const ObsBatch& obs, i
       const ChunkOutputs outs{first_row, rows, policy_.output(w.policy, rows), w.value.bufs().head};
       const ChunkGrads grads{Mat(w.d_logits.data(), rows, nl), w.d_value.data()};
       loss(outs, grads, std::span<double>(chunk_stats_.data() + static_cast<size_t>(c) * nstats, nstats));
+      // (A network's staged weight gradients go into gg at its group's last chunk, in its own task.)
       both_nets(
           [&] {
-            policy_.backward(p, gg, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
+            policy_.backward(pw, gg, n, steps, CMat(w.d_logits.data(), rows, nl), w.policy, &lstm_packed_[0]);
+            if (last) w.stage_p.flush();
           },
           [&] {
-            value_.backward(p, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
+            value_.backward(vw, gg, n, steps, CMat(w.d_value.data(), rows, 1), w.value, &lstm_packed_[1]);
+            if (last) w.stage_v.flush();
           });
     }
     give_back(std::move(work));

@@ -69,6 +69,10 @@ struct ParallelConfig {
   // per minibatch one zeroing and one summing pass over groups x parameters floats (16 groups cost about 5 %
   // of a quadrant paper iteration on 2 cores over 8).
   int grad_groups = 8;
+  // bf16 with the vdpbf16ps kernel: each network's weight gradients summed over several chunks by one
+  // product (nn/products.hpp GradStage); the same bits as one product per chunk (false: that, for the
+  // tests that compare the two).
+  bool stage_weight_grads = true;
 };
 
 // The training chunk for a network, measured on a 2-core AMD Zen 5 (src/nn/README.md "The training chunk per

@@ -167,18 +167,18 @@ HNS_BF16_INLINE void tail_rows(int rows, int vecs, const bf16_t* a, ALayout lda,
   }
 }
 
-// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0; bias: C's starting row
-// where the sums do not accumulate (null: zeros); next_c: where the tile after this one starts in C (null:
-// none).
-HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, const bf16_t* b, int k2, int n,
-                                int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* bias,
+// Rows [m, m + h) (h <= kRowsPerTile) of C's columns in the panel starting at n0, summing pairs [0, k2) of
+// B's panels of kp pairs each; bias: C's starting row where the sums do not accumulate (null: zeros);
+// next_c: where the tile after this one starts in C (null: none).
+HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, const bf16_t* b, int k2, int kp,
+                                int n, int n0, float* c, ptrdiff_t ldc, bool accumulate, const float* bias,
                                 const float* next_c) {
   const int width = panel_width(n, n0);
   const int vecs = width / kVecCols;
   const int last_cols = n - n0 - (vecs - 1) * kVecCols;  // columns of the panel's last vector
   const __mmask16 last_mask =
       last_cols >= 16 ? static_cast<__mmask16>(0xFFFF) : static_cast<__mmask16>((1u << last_cols) - 1u);
-  const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * k2;
+  const bf16_t* panel = b + static_cast<ptrdiff_t>(n0) * 2 * kp;
   const bf16_t* am = a + m * 2 * lda.row;
   float* cm = c + m * ldc + n0;
   const float* bn = bias == nullptr ? nullptr : bias + n0;
@@ -187,9 +187,10 @@ HNS_BF16_INLINE void panel_rows(const bf16_t* a, ALayout lda, int m, int h, cons
   tail_rows(h, vecs, am, lda, panel, k2, cm, ldc, accumulate, bn, last_mask, next_c);
 }
 
-HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, const bf16_t* b, int n,
-                                 float* c, ptrdiff_t ldc, bool accumulate, const float* bias = nullptr) {
-  const int k2 = pairs(k);  // (B's pairs per panel: no padding for this kernel)
+// C (+)= A B over k2 pairs, B's panels kp >= k2 pairs long (kp = k2 but for gemm_at_pairs).
+HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k2, int kp, const bf16_t* b,
+                                 int n, float* c, ptrdiff_t ldc, bool accumulate,
+                                 const float* bias = nullptr) {
   // Every element's sum is the same in either order of the tiles below; only the speed differs.
   // Where the tile at (m, n0) starts; null past the last one.
   auto at = [&](int m, int n0) -> const float* { return m < rows && n0 < n ? c + m * ldc + n0 : nullptr; };
@@ -197,14 +198,16 @@ HNS_BF16_TARGET void gemm_avx512(const bf16_t* a, ALayout lda, int rows, int k, 
     for (int m = 0; m < rows; m += kRowsPerTile)
       for (int n0 = 0; n0 < n; n0 += kPanel) {
         const float* next = n0 + kPanel < n ? at(m, n0 + kPanel) : at(m + kRowsPerTile, 0);
-        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, bias, next);
+        panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, kp, n, n0, c, ldc, accumulate, bias,
+                   next);
       }
     return;
   }
   for (int n0 = 0; n0 < n; n0 += kPanel)
     for (int m = 0; m < rows; m += kRowsPerTile) {
       const float* next = m + kRowsPerTile < rows ? at(m + kRowsPerTile, n0) : at(0, n0 + kPanel);
-      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, n, n0, c, ldc, accumulate, bias, next);
+      panel_rows(a, lda, m, std::min(kRowsPerTile, rows - m), b, k2, kp, n, n0, c, ldc, accumulate, bias,
+                 next);
     }
 }
 
@@ -503,6 +506,14 @@ void set_kernel(Kernel k) {
   g_kernel.store(static_cast<int>(k), std::memory_order_release);
 }
 
+namespace {
+// The pair-block functions lay out for vdpbf16ps only.
+void check_pairs_kernel() {
+  if (kernel() != Kernel::kAvx512Bf16)
+    throw std::logic_error("bf16: pair blocks are laid out for the vdpbf16ps kernel only");
+}
+}  // namespace
+
 size_t packed_elems(int k, int n) {
   const int kp = padded_pairs(k, kernel());
   size_t total = 0;
@@ -546,7 +557,7 @@ void gemm(const bf16_t* a, int rows, int k, const bf16_t* b, int n, float* c, pt
     const amx::ATiles at{a, amx::kTileRows * lda, 2 * amx::kTilePairs, lda * ptrdiff_t(sizeof(bf16_t))};
     return amx::gemm(at, rows, padded_pairs(k, kern), b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
   }
-  gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, accumulate);
+  gemm_avx512(a, {pairs(k), 1}, rows, pairs(k), pairs(k), b, n, c, ldc, accumulate);
 }
 
 void gemm_bias(const bf16_t* a, int rows, int k, const bf16_t* b, int n, const float* bias, float* c,
@@ -555,7 +566,7 @@ void gemm_bias(const bf16_t* a, int rows, int k, const bf16_t* b, int n, const f
     for (int m = 0; m < rows; ++m) std::copy_n(bias, n, c + m * ldc);
     return gemm(a, rows, k, b, n, c, ldc, true);
   }
-  gemm_avx512(a, {pairs(k), 1}, rows, k, b, n, c, ldc, false, bias);
+  gemm_avx512(a, {pairs(k), 1}, rows, pairs(k), pairs(k), b, n, c, ldc, false, bias);
 }
 
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
@@ -567,7 +578,38 @@ void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c
     const amx::ATiles a{at, kp / amx::kTilePairs * kTileElems, kTileElems, 2 * amx::kTilePairs * 2};
     return amx::gemm(a, rows, kp, b, n, c, ldc, accumulate, kern == Kernel::kAmxEmulated);
   }
-  gemm_avx512(at, {1, transposed_rows(rows)}, rows, k, b, n, c, ldc, accumulate);
+  gemm_avx512(at, {1, transposed_rows(rows)}, rows, pairs(k), pairs(k), b, n, c, ldc, accumulate);
+}
+
+size_t at_pairs_elems(int rows, int kp) {
+  return 2 * static_cast<size_t>(kp) * static_cast<size_t>(transposed_rows(rows));
+}
+
+size_t packed_pairs_elems(int kp, int n) {
+  size_t total = 0;
+  for (int n0 = 0; n0 < n; n0 += kPanel) total += static_cast<size_t>(panel_width(n, n0)) * 2 * kp;
+  return total;
+}
+
+void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, int p0, bf16_t* out) {
+  check_pairs_kernel();
+  convert_a_transposed_avx512(x, ldx, k, rows, out + 2 * static_cast<ptrdiff_t>(p0) * transposed_rows(rows));
+}
+
+void pack_b_rows_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int p0, bf16_t* out) {
+  check_pairs_kernel();
+  if (p0 < 0 || p0 + pairs(k) > kp) throw std::invalid_argument("bf16::pack_b_rows_pairs: pairs past kp");
+  for (int p = 0; p < pairs(k); ++p) {
+    const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx;
+    pack_pair_rows(r0, 2 * p + 1 < k ? r0 + ldx : nullptr, n, kp, p0 + p, out);
+  }
+}
+
+void gemm_at_pairs(const bf16_t* at, int rows, int k2, const bf16_t* b, int kp, int n, float* c,
+                   ptrdiff_t ldc) {
+  check_pairs_kernel();
+  if (k2 > kp) throw std::invalid_argument("bf16::gemm_at_pairs: more pairs than the panels hold");
+  gemm_avx512(at, {1, transposed_rows(rows)}, rows, k2, kp, b, n, c, ldc, true);
 }
 
 size_t attention_scratch_elems(int m, int dh) {

@@ -253,6 +253,8 @@ const bf16_t* pack_dz(CMat dz) {
 
 void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate) {
   if (!p.bf16()) return matmul_grad_fp32(x, dz, dw, accumulate);
+  HNS_NN_CHECK(x.rows == dz.rows, "weight gradient of another row count");
+  if (p.stage != nullptr && p.stage->add(x, dz, dw, accumulate)) return;
   matmul_grad_bf16(x, pack_dz(dz), dz.cols, dw, accumulate);
 }
 
@@ -262,9 +264,143 @@ void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CM
     matmul_grad_fp32(x0, dz, dw0, accumulate);
     return matmul_grad_fp32(x1, dz, dw1, accumulate);
   }
+  if (p.stage != nullptr && p.stage->add2(x0, dw0, x1, dw1, dz, accumulate)) return;
   const bf16_t* b = pack_dz(dz);
   matmul_grad_bf16(x0, b, dz.cols, dw0, accumulate);
   matmul_grad_bf16(x1, b, dz.cols, dw1, accumulate);
+}
+
+// ---- GradStage
+
+int GradStage::find(const float* dw) const {
+  for (int i = 0; i < open_count(); ++i)
+    if (blk(i).dw == dw) return i;
+  return -1;
+}
+
+bool GradStage::shares_b(int i) const {
+  return blk(i).b_from >= 0 || (i + 1 < open_count() && blk(i + 1).b_from == i);
+}
+
+void GradStage::flush_block(int i) {
+  // A block and the one sharing its B go together (their pairs are the same rows).
+  int first = i, last = i;
+  if (blk(i).b_from >= 0) first = blk(i).b_from;
+  if (first + 1 < open_count() && blk(first + 1).b_from == first) last = first + 1;
+  for (int j = first; j <= last; ++j) {
+    const Block& b = blk(j);
+    const Block& owner = b.b_from >= 0 ? blk(b.b_from) : b;
+    if (b.pairs > 0)
+      bf16::gemm_at_pairs(reinterpret_cast<const bf16_t*>(b.at.data()), b.rows, b.pairs,
+                          reinterpret_cast<const bf16_t*>(owner.b.data()), kPairs, b.n, b.dw, b.n);
+  }
+  for (int j = first; j <= last; ++j) blk(j).pairs = 0;
+}
+
+void GradStage::retire(int i) {
+  flush_block(i);
+  Block& b = blk(i);
+  if (b.b_from >= 0) blk(b.b_from).dw = nullptr;
+  if (i + 1 < open_count() && blk(i + 1).b_from == i) blk(i + 1).dw = nullptr;
+  b.dw = nullptr;
+}
+
+GradStage::Block& GradStage::open(float* dw, int rows, int n, int b_from) {
+  // A free block of this shape, or a new one: a block keeps its shape and buffers for good, so a stage
+  // holds at most as many of a shape as a backward pass has gradients of it open at once.
+  const bool own_b = b_from < 0;
+  size_t slot = 0;
+  while (slot < slots_.size() && (slots_[slot].busy || slots_[slot].rows != rows || slots_[slot].n != n ||
+                                  slots_[slot].own_b != own_b))
+    ++slot;
+  if (slot == slots_.size()) {
+    Block& fresh = slots_.emplace_back();
+    fresh.rows = rows;
+    fresh.n = n;
+    fresh.own_b = own_b;
+    fresh.at = FloatBuffer((bf16::at_pairs_elems(rows, kPairs) + 1) / 2);
+    if (own_b) fresh.b = FloatBuffer((bf16::packed_pairs_elems(kPairs, n) + 1) / 2);
+  }
+  Block& b = slots_[slot];
+  b.busy = true;
+  b.dw = dw;
+  b.pairs = 0;
+  b.b_from = b_from;
+  open_.push_back(int(slot));
+  return b;
+}
+
+void GradStage::clear() {
+  for (const int slot : open_) slots_[size_t(slot)].busy = false;
+  open_.clear();
+}
+
+bool GradStage::stages(bool accumulate, int rows, std::initializer_list<const float*> dws) {
+  if (accumulate && rows <= kMaxRows && bf16::kernel() == bf16::Kernel::kAvx512Bf16) return true;
+  for (const float* dw : dws)
+    if (const int i = find(dw); i >= 0) flush_block(i);
+  return false;
+}
+
+bool GradStage::add(CMat x, CMat dz, float* dw, bool accumulate) {
+  if (!stages(accumulate, x.rows, {dw})) return false;
+  const int pairs = (x.rows + 1) / 2;
+  int i = find(dw);
+  if (i >= 0 && (shares_b(i) || blk(i).n != dz.cols || blk(i).rows != x.cols)) {
+    retire(i);  // staged by add2 or with another shape: summed, and a block of its own from here
+    i = -1;
+  }
+  if (i >= 0 && blk(i).pairs + pairs > kPairs) flush_block(i);
+  Block& b = i >= 0 ? blk(i) : open(dw, x.cols, dz.cols, -1);
+  bf16::convert_a_transposed_pairs(x.data, x.stride, x.rows, x.cols, b.pairs,
+                                   reinterpret_cast<bf16_t*>(b.at.data()));
+  bf16::pack_b_rows_pairs(dz.data, dz.stride, dz.rows, dz.cols, kPairs, b.pairs,
+                          reinterpret_cast<bf16_t*>(b.b.data()));
+  b.pairs += pairs;
+  return true;
+}
+
+bool GradStage::add2(CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate) {
+  if (!stages(accumulate, dz.rows, {dw0, dw1})) return false;
+  const int pairs = (dz.rows + 1) / 2;
+  int i0 = find(dw0);
+  const int i1 = find(dw1);
+  // The two blocks an earlier call opened for these inputs, or new ones.
+  const bool same = i0 >= 0 && i1 == i0 + 1 && blk(i1).b_from == i0 && blk(i0).n == dz.cols &&
+                    blk(i0).rows == x0.cols && blk(i1).rows == x1.cols;
+  if (!same) {
+    if (i0 >= 0) retire(i0);
+    if (const int j = find(dw1); j >= 0) retire(j);
+    i0 = open_count();
+    open(dw0, x0.cols, dz.cols, -1);
+    open(dw1, x1.cols, dz.cols, i0);
+  } else if (blk(i0).pairs + pairs > kPairs) {
+    flush_block(i0);
+  }
+  Block& b0 = blk(i0);
+  Block& b1 = blk(i0 + 1);
+  bf16::convert_a_transposed_pairs(x0.data, x0.stride, x0.rows, x0.cols, b0.pairs,
+                                   reinterpret_cast<bf16_t*>(b0.at.data()));
+  bf16::convert_a_transposed_pairs(x1.data, x1.stride, x1.rows, x1.cols, b1.pairs,
+                                   reinterpret_cast<bf16_t*>(b1.at.data()));
+  bf16::pack_b_rows_pairs(dz.data, dz.stride, dz.rows, dz.cols, kPairs, b0.pairs,
+                          reinterpret_cast<bf16_t*>(b0.b.data()));
+  b0.pairs += pairs;
+  b1.pairs += pairs;
+  return true;
+}
+
+void GradStage::flush() {
+  for (int i = 0; i < open_count(); ++i)
+    if (blk(i).b_from < 0) flush_block(i);
+  clear();
+}
+
+size_t GradStage::max_bytes(const ParamLayout& layout) {
+  size_t elems = 0;
+  for (const ProductMatrix& m : layout.products())
+    elems += 2 * size_t(kPairs) * (align_floats(size_t(m.rows)) + align_floats(size_t(m.cols)));
+  return elems * sizeof(bf16_t);
 }
 
 }  // namespace hns::nn

@@ -13,6 +13,7 @@
 #include "nn/params.hpp"
 #include "nn/tensor.hpp"
 
+#include <initializer_list>
 #include <vector>
 
 namespace hns::nn {
@@ -52,11 +53,69 @@ class PackedWeights {
   bool has_transposed_ = false;
 };
 
+// Weight gradients of several training chunks summed by one bf16 product each (nn/README.md "Weight
+// gradients over several chunks"). A chunk of `small` has 40 rows, and a product x^T dz that sums only 40
+// rows into a weight gradient runs well below the kernel's speed (each tile of C is loaded, summed over a
+// few pairs and stored again); four chunks' rows in one product run near it. A backward pass whose Weights
+// carry a stage hands it each accumulating x^T dz of at most kMaxRows rows: x^T and dz are converted into
+// the stage's blocks (bf16::convert_a_transposed_pairs, pack_b_rows_pairs), and the products into the
+// gradients run at flush(), or when a block would overflow. Per gradient the chunks' pairs stay in their
+// order, so the sums are those of one product per chunk, bit for bit. With the vdpbf16ps kernel only (the
+// AMX kernels' tiles pad k to 16 pairs per product: add() declines). One stage serves one network's
+// backward passes of one gradient group, one at a time; distinct gradients must not overlap.
+class GradStage {
+ public:
+  static constexpr int kPairs = 80;    // pairs of rows a block holds (160 rows: four chunks of `small`)
+  static constexpr int kMaxRows = 80;  // products of more rows run at once
+  // Stages dw += x^T dz (accumulate: dw already holds a sum) and returns true, or returns false where the
+  // caller runs the product itself (more rows than kMaxRows, a product that overwrites dw, not the vdpbf16ps
+  // kernel), after flushing whatever this stage holds for dw.
+  bool add(CMat x, CMat dz, float* dw, bool accumulate);
+  // The same for two inputs sharing dz (matmul_grad2): dz converted once.
+  bool add2(CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate);
+  // Every staged product, each into its gradient.
+  void flush();
+  bool empty() const { return open_.empty(); }
+  // Drops whatever is staged (a group starting after another's pass was cut short by an exception).
+  void clear();
+  // Bytes a stage may hold for the backward passes of a layout's networks: at most one block per product
+  // matrix (each gradient has one shape, and a block is reused for that shape).
+  static size_t max_bytes(const ParamLayout& layout);
+
+ private:
+  struct Block {
+    int rows = 0;         // the gradient's rows: x's columns
+    int n = 0;            // its columns: dz's columns
+    bool own_b = true;    // false: the block sums with another's B (add2's second input)
+    FloatBuffer at, b;    // bf16: x^T (kPairs pairs) and dz (kPairs pairs per panel; own_b only)
+    bool busy = false;    // open
+    float* dw = nullptr;  // while open: the gradient (null: retired, summed)
+    int pairs = 0;        // staged since the block's last product
+    int b_from = -1;      // the open block whose B it sums with, or -1: its own
+  };
+  int open_count() const { return static_cast<int>(open_.size()); }
+  Block& blk(int i) { return slots_[size_t(open_[size_t(i)])]; }
+  const Block& blk(int i) const { return slots_[size_t(open_[size_t(i)])]; }
+  int find(const float* dw) const;
+  bool shares_b(int i) const;
+  // Sums open block i (and the block sharing its B) into its gradient; the blocks stay open, empty.
+  void flush_block(int i);
+  // flush_block, and the block (and its partner) no longer stands for its gradient.
+  void retire(int i);
+  Block& open(float* dw, int rows, int n, int b_from);
+  // True where a product of these rows is staged; else flushes what is staged for dws.
+  bool stages(bool accumulate, int rows, std::initializer_list<const float*> dws);
+  std::vector<Block> slots_;  // every block so far, each of one shape for good
+  std::vector<int> open_;     // the open ones, in the order they were opened since the last flush
+};
+
 // The parameters as a forward or backward pass reads them: the float values and, for bf16 products, their
-// packed forms (null: fp32 products). A plain float pointer converts to fp32 weights.
+// packed forms (null: fp32 products). A plain float pointer converts to fp32 weights. A backward pass with a
+// stage hands its weight gradients to it (bf16 only; the caller flushes the stage before reading them).
 struct Weights {
   const float* values = nullptr;
   const PackedWeights* packed = nullptr;
+  GradStage* stage = nullptr;
   Weights(const float* v) : values(v) {}  // NOLINT(google-explicit-constructor): fp32 is the plain case
   Weights(const float* v, const PackedWeights* p) : values(v), packed(p) {}
   bool bf16() const { return packed != nullptr; }

@@ -627,6 +627,10 @@ size_t TrainConfig::estimated_bytes(int ranks) const {
   const size_t blocks = size_t(std::max(1, update_blocks()));
   floats += std::min(threads_used, blocks) * train_ws +
             threads_used * ((precision == "fp32" ? 0 : train_ws / 4) + infer_ws);
+  // bf16: each training workspace's weight-gradient stages, both networks' (nn::GradStage: at most one block
+  // per product matrix).
+  if (precision != "fp32")
+    floats += std::min(threads_used, blocks) * (nn::GradStage::max_bytes(layout) / sizeof(float));
   const double bytes = (double(floats) * sizeof(float) + double(bc.estimated_bytes())) * kMargin;
   return size_t(bytes) + kFixedBytes;
 }

@@ -660,6 +660,13 @@ TEST_P(NnNetworkPrecision, BitIdenticalForAnyThreadCount) {
   Result one;
   for (int groups : {1, 4}) {
     one = run(1, groups);
+    // bf16's weight gradients summed over several chunks (GradStage; here chunks of 15 rows, an odd count,
+    // 8 per group with 1 group, 2 with 4) against one product per chunk: the same bits.
+    par.stage_weight_grads = false;
+    const Result unstaged = run(2, groups);
+    par.stage_weight_grads = true;
+    EXPECT_TRUE(same(one.grads, unstaged.grads) && same(one.params, unstaged.params))
+        << "staged against unstaged weight gradients, " << groups << " groups";
     for (int threads : {2, 3, 8, 8, 8}) {
       const Result many = run(threads, groups);
       const std::string where = std::to_string(threads) + " threads, " + std::to_string(groups) + " groups";

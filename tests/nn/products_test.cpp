@@ -1,5 +1,6 @@
 // The layers' float products (nn/products.hpp with fp32 weights): the same bits as the Eigen expressions
-// they stand for, and no memory taken per call once a thread has met its largest shape.
+// they stand for, and no memory taken per call once a thread has met its largest shape. The bf16 weight
+// gradients staged over several chunks: the same bits as one product per chunk.
 #include <gtest/gtest.h>
 #include <malloc.h>
 #include <sys/resource.h>
@@ -9,6 +10,8 @@
 #include <cstring>
 #include <vector>
 
+#include "nn/bf16_gemm.hpp"
+#include "nn/params.hpp"
 #include "nn/products.hpp"
 #include "test_util.hpp"
 
@@ -83,6 +86,64 @@ TEST(NnProducts, FloatProductsEqualTheirEigenExpressionsBitForBit) {
       EXPECT_TRUE(same_bits(dw, dw_ref)) << "matmul_grad, accumulate " << acc;
     }
   }
+}
+
+// A GradStage (bf16, vdpbf16ps kernel) sums several chunks' weight gradients in one product each: the same
+// bits as one product per chunk, whatever comes between. Eleven "chunks" of products as a backward pass
+// makes them: a dense layer's (rows around a chunk's 40, odd ones padded with a zero pair), the LSTM's two
+// inputs sharing dz (matmul_grad2), and an entity layer whose rows vary from a few to more than a stage takes
+// (those run at once, after what was staged for that gradient); now and then a product that overwrites a
+// staged gradient, and one of the LSTM's inputs alone. Enough rows to fill the stage's blocks several times.
+TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
+  const bf16::Kernel saved = bf16::kernel();
+  bf16::set_kernel(bf16::Kernel::kAvx512Bf16);
+  const PackedWeights packed{ParamLayout{}};
+  const Weights direct(nullptr, &packed);
+  GradStage stage;
+  Weights staged(nullptr, &packed);
+  staged.stage = &stage;
+
+  const int dense_rows[] = {40, 40, 39, 40, 17, 40, 1, 40, 40, 33, 40};
+  const int entity_rows[] = {12, 90, 7, 200, 3, 64, 81, 80, 2, 150, 5};
+  struct Grad {
+    int in, out;
+    std::vector<float> dw;
+  };
+  // dense [281, 64], LSTM input and recurrent [37, 128] and [20, 128], entity [15, 40]
+  std::vector<Grad> want = {{281, 64, {}}, {37, 128, {}}, {20, 128, {}}, {15, 40, {}}};
+  for (size_t i = 0; i < want.size(); ++i)
+    want[i].dw = testing::random_vector(size_t(want[i].in) * want[i].out, uint32_t(10 + i));
+  std::vector<Grad> got = want;
+  bool staged_before_flush = false;
+  for (int c = 0; c < 11; ++c) {
+    SCOPED_TRACE(::testing::Message() << "chunk " << c);
+    auto run = [&](const Weights& p, std::vector<Grad>& g) {
+      const int r = dense_rows[c], e = entity_rows[c];
+      const uint32_t seed = uint32_t(100 * c);
+      const std::vector<float> x = testing::random_vector(size_t(r) * 290, seed + 1);
+      const std::vector<float> dz = testing::random_vector(size_t(r) * 130, seed + 2);
+      const std::vector<float> xe = testing::random_vector(size_t(e) * 15, seed + 3);
+      const std::vector<float> dze = testing::random_vector(size_t(e) * 40, seed + 4);
+      // (row strides wider than the columns, as the layers' views are)
+      matmul_grad(p, CMat(x.data(), r, 281, 290), CMat(dz.data(), r, 64, 130), g[0].dw.data(), c % 4 != 3);
+      if (c == 5) {
+        matmul_grad(p, CMat(x.data(), r, 37, 290), CMat(dz.data(), r, 128, 130), g[1].dw.data(), true);
+      } else {
+        matmul_grad2(p, CMat(x.data() + 100, r, 37, 290), g[1].dw.data(), CMat(x.data() + 200, r, 20, 290),
+                     g[2].dw.data(), CMat(dz.data(), r, 128, 130), true);
+      }
+      matmul_grad(p, CMat(xe.data(), e, 15), CMat(dze.data(), e, 40), g[3].dw.data(), true);
+    };
+    run(direct, want);
+    run(staged, got);
+    for (size_t i = 0; i < got.size(); ++i) staged_before_flush |= !same_bits(got[i].dw, want[i].dw);
+  }
+  EXPECT_TRUE(staged_before_flush) << "nothing was left in the stage: the test no longer tests it";
+  stage.flush();
+  EXPECT_TRUE(stage.empty());
+  for (size_t i = 0; i < got.size(); ++i) EXPECT_TRUE(same_bits(got[i].dw, want[i].dw)) << "gradient " << i;
+  bf16::set_kernel(saved);
 }
 
 long minor_faults_of_this_thread() {
