@@ -85,7 +85,10 @@ struct ActorCritic::ThreadWork {
   std::vector<int32_t> index;  // [sequences] an inference chunk's rows, padded
   FloatBuffer state_p;         // [sequences, state width] its LSTM states, padded
   FloatBuffer state_v;
-  GradStage stage_p, stage_v;  // each network's weight gradients over several chunks (training, bf16)
+  // Each network's weight gradients over several chunks (training, bf16), a line apart: the two networks'
+  // tasks update them at once.
+  alignas(64) GradStage stage_p;
+  alignas(64) GradStage stage_v;
   ThreadWork(const ActorCritic& ac, int seqs, int st)
       : sequences(seqs),
         steps(st),

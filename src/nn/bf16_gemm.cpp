@@ -506,14 +506,6 @@ void set_kernel(Kernel k) {
   g_kernel.store(static_cast<int>(k), std::memory_order_release);
 }
 
-namespace {
-// The pair-block functions lay out for vdpbf16ps only.
-void check_pairs_kernel() {
-  if (kernel() != Kernel::kAvx512Bf16)
-    throw std::logic_error("bf16: pair blocks are laid out for the vdpbf16ps kernel only");
-}
-}  // namespace
-
 size_t packed_elems(int k, int n) {
   const int kp = padded_pairs(k, kernel());
   size_t total = 0;
@@ -591,14 +583,20 @@ size_t packed_pairs_elems(int kp, int n) {
   return total;
 }
 
-void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, int p0, bf16_t* out) {
-  check_pairs_kernel();
+namespace {
+void check_pairs(int k, int kp, int p0) {
+  if (!available()) throw std::logic_error("bf16: pair blocks need AVX512-BF16, which this CPU lacks");
+  if (p0 < 0 || p0 + pairs(k) > kp) throw std::invalid_argument("bf16: pairs past the block's kp");
+}
+}  // namespace
+
+void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, int kp, int p0, bf16_t* out) {
+  check_pairs(k, kp, p0);
   convert_a_transposed_avx512(x, ldx, k, rows, out + 2 * static_cast<ptrdiff_t>(p0) * transposed_rows(rows));
 }
 
 void pack_b_rows_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int p0, bf16_t* out) {
-  check_pairs_kernel();
-  if (p0 < 0 || p0 + pairs(k) > kp) throw std::invalid_argument("bf16::pack_b_rows_pairs: pairs past kp");
+  check_pairs(k, kp, p0);
   for (int p = 0; p < pairs(k); ++p) {
     const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx;
     pack_pair_rows(r0, 2 * p + 1 < k ? r0 + ldx : nullptr, n, kp, p0 + p, out);
@@ -607,8 +605,7 @@ void pack_b_rows_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int 
 
 void gemm_at_pairs(const bf16_t* at, int rows, int k2, const bf16_t* b, int kp, int n, float* c,
                    ptrdiff_t ldc) {
-  check_pairs_kernel();
-  if (k2 > kp) throw std::invalid_argument("bf16::gemm_at_pairs: more pairs than the panels hold");
+  check_pairs(2 * k2, kp, 0);
   gemm_avx512(at, {1, transposed_rows(rows)}, rows, k2, kp, b, n, c, ldc, true);
 }
 

@@ -97,16 +97,17 @@ void gemm_bias(const bf16_t* a, int rows, int k, const bf16_t* b, int n, const f
 void gemm_at(const bf16_t* at, int rows, int k, const bf16_t* b, int n, float* c, ptrdiff_t ldc,
              bool accumulate);
 
-// Weight gradients summed over several blocks of rows in one product (vdpbf16ps only: std::logic_error
-// under the AMX kernels). C (+)= x^T B is a chain over k's pairs in order, so the blocks' pairs laid end to
-// end in one A and one B and summed by one product give the bits of one gemm_at per block, block after
-// block, with fewer passes over C. A holds kp pairs of `rows` rows (at_pairs_elems; pair p of row m is the
-// dword at p * ldm + m, as convert_a_transposed lays it out), B kp pairs per panel (packed_pairs_elems). A
-// block of k rows of x (and of the B rows) goes into pairs [p0, p0 + (k + 1) / 2), an odd k's last pair
-// padded with zeros as gemm_at's would be; gemm_at_pairs sums pairs [0, k2) into C.
+// Weight gradients summed over several blocks of rows in one product, in the vdpbf16ps kernel's layout and
+// arithmetic whichever kernel() is in use (they need AVX512-BF16 only). C (+)= x^T B is a chain over k's
+// pairs in order, so the blocks' pairs laid end to end in one A and one B and summed by one product give the
+// bits of the vdpbf16ps kernel's gemm_at per block, block after block, with fewer passes over C. A holds kp
+// pairs of `rows` rows (at_pairs_elems; pair p of row m is the dword at p * ldm + m, as convert_a_transposed
+// lays it out), B kp pairs per panel (packed_pairs_elems). A block of k rows of x (and of the B rows) goes
+// into pairs [p0, p0 + (k + 1) / 2), an odd k's last pair padded with zeros as gemm_at's would be;
+// gemm_at_pairs sums pairs [0, k2) into C.
 size_t at_pairs_elems(int rows, int kp);
 size_t packed_pairs_elems(int kp, int n);
-void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, int p0, bf16_t* out);
+void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, int kp, int p0, bf16_t* out);
 void pack_b_rows_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int p0, bf16_t* out);
 void gemm_at_pairs(const bf16_t* at, int rows, int k2, const bf16_t* b, int kp, int n, float* c,
                    ptrdiff_t ldc);

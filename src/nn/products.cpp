@@ -352,7 +352,7 @@ bool GradStage::add(CMat x, CMat dz, float* dw, bool accumulate) {
   }
   if (i >= 0 && blk(i).pairs + pairs > kPairs) flush_block(i);
   Block& b = i >= 0 ? blk(i) : open(dw, x.cols, dz.cols, -1);
-  bf16::convert_a_transposed_pairs(x.data, x.stride, x.rows, x.cols, b.pairs,
+  bf16::convert_a_transposed_pairs(x.data, x.stride, x.rows, x.cols, kPairs, b.pairs,
                                    reinterpret_cast<bf16_t*>(b.at.data()));
   bf16::pack_b_rows_pairs(dz.data, dz.stride, dz.rows, dz.cols, kPairs, b.pairs,
                           reinterpret_cast<bf16_t*>(b.b.data()));
@@ -379,9 +379,9 @@ bool GradStage::add2(CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool acc
   }
   Block& b0 = blk(i0);
   Block& b1 = blk(i0 + 1);
-  bf16::convert_a_transposed_pairs(x0.data, x0.stride, x0.rows, x0.cols, b0.pairs,
+  bf16::convert_a_transposed_pairs(x0.data, x0.stride, x0.rows, x0.cols, kPairs, b0.pairs,
                                    reinterpret_cast<bf16_t*>(b0.at.data()));
-  bf16::convert_a_transposed_pairs(x1.data, x1.stride, x1.rows, x1.cols, b1.pairs,
+  bf16::convert_a_transposed_pairs(x1.data, x1.stride, x1.rows, x1.cols, kPairs, b1.pairs,
                                    reinterpret_cast<bf16_t*>(b1.at.data()));
   bf16::pack_b_rows_pairs(dz.data, dz.stride, dz.rows, dz.cols, kPairs, b0.pairs,
                           reinterpret_cast<bf16_t*>(b0.b.data()));

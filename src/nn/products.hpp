@@ -61,8 +61,9 @@ class PackedWeights {
 // the stage's blocks (bf16::convert_a_transposed_pairs, pack_b_rows_pairs), and the products into the
 // gradients run at flush(), or when a block would overflow. Per gradient the chunks' pairs stay in their
 // order, so the sums are those of one product per chunk, bit for bit. With the vdpbf16ps kernel only (the
-// AMX kernels' tiles pad k to 16 pairs per product: add() declines). One stage serves one network's
-// backward passes of one gradient group, one at a time; distinct gradients must not overlap.
+// AMX kernels' tiles pad k to 16 pairs per product: add() declines, after summing what it holds for the
+// gradient with the vdpbf16ps arithmetic it was staged for). One stage serves one network's backward passes
+// of one gradient group, one at a time; distinct gradients must not overlap.
 class GradStage {
  public:
   static constexpr int kPairs = 80;    // pairs of rows a block holds (160 rows: four chunks of `small`)
@@ -76,10 +77,13 @@ class GradStage {
   // Every staged product, each into its gradient.
   void flush();
   bool empty() const { return open_.empty(); }
-  // Drops whatever is staged (a group starting after another's pass was cut short by an exception).
+  // Drops whatever is staged: a group's workspace may come back with rows still staged when an exception in
+  // another group cancelled its last chunk's tasks (and so its flush).
   void clear();
   // Bytes a stage may hold for the backward passes of a layout's networks: at most one block per product
-  // matrix (each gradient has one shape, and a block is reused for that shape).
+  // matrix. (A block keeps its shape and is reused for it; a gradient takes one block as long as it is
+  // always staged by the same call, add or add2, with one shape, as the networks' layers do. One staged
+  // otherwise retires its block and takes another until the next flush.)
   static size_t max_bytes(const ParamLayout& layout);
 
  private:

@@ -328,51 +328,51 @@ TEST_P(NnBf16Kernel, TransposedProductMatchesItsDefinition) {
 }
 
 // Blocks of rows laid end to end (convert_a_transposed_pairs, pack_b_rows_pairs) and summed by one
-// gemm_at_pairs: the bits of one gemm_at per block, block after block, odd blocks' zero pair included, for
-// row counts around the layout's vectors and B panels of several widths (the vdpbf16ps kernel; the AMX
-// kernels refuse the pair layout).
+// gemm_at_pairs: the bits of the vdpbf16ps kernel's gemm_at per block, block after block, odd blocks' zero
+// pair included, for row counts around the layout's vectors and B panels of several widths; under every
+// kernel (the pair blocks are the vdpbf16ps kernel's layout and arithmetic whichever kernel is in use).
 TEST_P(NnBf16Kernel, ProductOverBlocksOfPairsEqualsOneProductPerBlock) {
+  const bf16::Kernel param = GetParam();
+  // gemm_at per block, the reference, on the vdpbf16ps kernel.
+  auto one_product = [&](const std::vector<float>& x, int ldx, const std::vector<float>& dz, int k, int rows,
+                         int n, std::vector<float>& c) {
+    bf16::set_kernel(bf16::Kernel::kAvx512Bf16);
+    std::vector<bf16_t> a1(bf16::at_elems(rows, k), kNan), b1(bf16::packed_elems(k, n), kNan);
+    bf16::convert_a_transposed(x.data(), ldx, k, rows, a1.data());
+    bf16::pack_b_rows(dz.data(), n + 2, k, n, b1.data());
+    bf16::gemm_at(a1.data(), rows, k, b1.data(), n, c.data(), n, true);
+    bf16::set_kernel(param);
+  };
   const int kp = 48;
-  if (amx()) {
-    std::vector<bf16_t> at(2 * 16 * kp), b(2 * 64 * kp);
-    std::vector<float> c(16 * 64);
-    EXPECT_THROW(bf16::gemm_at_pairs(at.data(), 16, 1, b.data(), kp, 64, c.data(), 64), std::logic_error);
-    return;
-  }
   const int blocks[] = {40, 7, 1, 20, 26};  // 20 + 4 + 1 + 10 + 13 = 48 pairs
   for (int rows : {1, 6, 17, 45})
     for (int n : {5, 64, 130}) {
       SCOPED_TRACE(::testing::Message() << "rows " << rows << " n " << n);
       std::vector<bf16_t> at(bf16::at_pairs_elems(rows, kp), kNan), bb(bf16::packed_pairs_elems(kp, n), kNan);
       std::vector<float> want = random_floats(size_t(rows) * n, 3), got = want;
+      std::vector<float> first = random_floats(size_t(rows) * n, 5), first_want = first;
       int p0 = 0;
       for (int i = 0; i < 5; ++i) {
         const int k = blocks[i], ldx = rows + 3;
         const std::vector<float> x = random_floats(size_t(k) * ldx, uint32_t(100 * i + rows));
         const std::vector<float> dz = random_floats(size_t(k) * (n + 2), uint32_t(7 * i + n));
-        std::vector<bf16_t> a1(bf16::at_elems(rows, k), kNan), b1(bf16::packed_elems(k, n), kNan);
-        bf16::convert_a_transposed(x.data(), ldx, k, rows, a1.data());
-        bf16::pack_b_rows(dz.data(), n + 2, k, n, b1.data());
-        bf16::gemm_at(a1.data(), rows, k, b1.data(), n, want.data(), n, true);
-        bf16::convert_a_transposed_pairs(x.data(), ldx, k, rows, p0, at.data());
+        one_product(x, ldx, dz, k, rows, n, want);
+        if (i == 0) one_product(x, ldx, dz, k, rows, n, first_want);
+        bf16::convert_a_transposed_pairs(x.data(), ldx, k, rows, kp, p0, at.data());
         bf16::pack_b_rows_pairs(dz.data(), n + 2, k, n, kp, p0, bb.data());
         p0 += (k + 1) / 2;
       }
       ASSERT_EQ(p0, kp);
       bf16::gemm_at_pairs(at.data(), rows, kp, bb.data(), kp, n, got.data(), n);
       for (size_t i = 0; i < got.size(); ++i) ASSERT_NO_FATAL_FAILURE(expect_product(got[i], want[i], "C"));
-      // The first pairs only: the blocks' panels are read at their kp-pair stride.
-      std::vector<float> part = random_floats(size_t(rows) * n, 5), part_want = part;
-      bf16::gemm_at_pairs(at.data(), rows, 20, bb.data(), kp, n, part.data(), n);
-      const std::vector<float> x = random_floats(size_t(40) * (rows + 3), uint32_t(rows));
-      const std::vector<float> dz = random_floats(size_t(40) * (n + 2), uint32_t(n));
-      std::vector<bf16_t> a1(bf16::at_elems(rows, 40), kNan), b1(bf16::packed_elems(40, n), kNan);
-      bf16::convert_a_transposed(x.data(), rows + 3, 40, rows, a1.data());
-      bf16::pack_b_rows(dz.data(), n + 2, 40, n, b1.data());
-      bf16::gemm_at(a1.data(), rows, 40, b1.data(), n, part_want.data(), n, true);
-      for (size_t i = 0; i < part.size(); ++i)
-        ASSERT_NO_FATAL_FAILURE(expect_product(part[i], part_want[i], "the first block's pairs"));
+      // The first block's pairs only: the panels are read at their kp-pair stride.
+      bf16::gemm_at_pairs(at.data(), rows, 20, bb.data(), kp, n, first.data(), n);
+      for (size_t i = 0; i < first.size(); ++i)
+        ASSERT_NO_FATAL_FAILURE(expect_product(first[i], first_want[i], "the first block's pairs"));
     }
+  std::vector<bf16_t> at(bf16::at_pairs_elems(6, 4));
+  EXPECT_THROW(bf16::convert_a_transposed_pairs(nullptr, 6, 7, 6, 4, 1, at.data()), std::invalid_argument)
+      << "a block past kp pairs";
 }
 
 // Accumulating products into a C larger than 512 KB with a B of at most 512 KB: the vdpbf16ps kernel takes

@@ -93,7 +93,7 @@ TEST(NnProducts, FloatProductsEqualTheirEigenExpressionsBitForBit) {
 // makes them: a dense layer's (rows around a chunk's 40, odd ones padded with a zero pair), the LSTM's two
 // inputs sharing dz (matmul_grad2), and an entity layer whose rows vary from a few to more than a stage takes
 // (those run at once, after what was staged for that gradient); now and then a product that overwrites a
-// staged gradient, and one of the LSTM's inputs alone. Enough rows to fill the stage's blocks several times.
+// staged gradient, and each of the LSTM's inputs alone. Enough rows to fill the stage's blocks several times.
 TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
   if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   const bf16::Kernel saved = bf16::kernel();
@@ -129,6 +129,8 @@ TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
       matmul_grad(p, CMat(x.data(), r, 281, 290), CMat(dz.data(), r, 64, 130), g[0].dw.data(), c % 4 != 3);
       if (c == 5) {
         matmul_grad(p, CMat(x.data(), r, 37, 290), CMat(dz.data(), r, 128, 130), g[1].dw.data(), true);
+      } else if (c == 8) {  // the second input alone: the block that sums with the first one's dz
+        matmul_grad(p, CMat(x.data() + 200, r, 20, 290), CMat(dz.data(), r, 128, 130), g[2].dw.data(), true);
       } else {
         matmul_grad2(p, CMat(x.data() + 100, r, 37, 290), g[1].dw.data(), CMat(x.data() + 200, r, 20, 290),
                      g[2].dw.data(), CMat(dz.data(), r, 128, 130), true);
