@@ -507,10 +507,7 @@ void set_kernel(Kernel k) {
 }
 
 size_t packed_elems(int k, int n) {
-  const int kp = padded_pairs(k, kernel());
-  size_t total = 0;
-  for (int n0 = 0; n0 < n; n0 += kPanel) total += static_cast<size_t>(panel_width(n, n0)) * 2 * kp;
-  return total;
+  return packed_pairs_elems(padded_pairs(k, kernel()), n);
 }
 
 size_t a_row_elems(int k) {
