@@ -81,9 +81,9 @@ fp32_est="$last_est"
 fp32_peak="$last_peak"
 check "quadrant small 4 envs, horizon = bptt = 400" --scene quadrant --model small --envs 4 --set horizon=400 \
   --set bptt=400
-# bf16 runs add the packed weights and each thread's operand scratch (where the CPU has AVX512-BF16). Against
-# the same shape in fp32, the estimate must grow, and the peak by no more than the estimate's growth (16 MiB
-# allowed for the noise of two peaks). This checks the bf16 terms themselves, which are too small a part of
+# bf16 runs add the packed weights, each thread's operand scratch and the weight-gradient stages (where the CPU
+# has AVX512-BF16). Against the same shape in fp32, the estimate must grow, and the peak by no more than the
+# estimate's growth (16 MiB allowed for the noise of two peaks). This checks the bf16 terms themselves, which are too small a part of
 # the estimate for the bound above to notice one left out.
 checks=4
 if grep -qsw avx512_bf16 /proc/cpuinfo; then
