@@ -291,15 +291,25 @@ HNS_BF16_TARGET void attention_scores_avx512(const float* q, ptrdiff_t q_stride,
 // Row pair (r0, r1) of B (r1 may be null: zeros), columns [0, n) as floats, into every panel's pair p (kp
 // pairs per panel).
 HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int kp, int p, bf16_t* out) {
-  for (int j = 0; j < n; j += kVecCols) {
-    const int count = n - j;
-    const __m512 x0 = load_masked(r0 + j, count);
-    const __m512 x1 = r1 != nullptr ? load_masked(r1 + j, count) : _mm512_setzero_ps();
-    const int n0 = j / kPanel * kPanel;
+  // Panel by panel: a panel's 16-column vectors of pair p are consecutive (64 bytes each).
+  for (int n0 = 0; n0 < n; n0 += kPanel) {
     const int width = panel_width(n, n0);
-    bf16_t* dst =
-        out + static_cast<ptrdiff_t>(n0) * 2 * kp + (static_cast<ptrdiff_t>(p) * width + (j - n0)) * 2;
-    _mm512_storeu_si512(dst, cvt_pairs(x0, x1));
+    const int whole = std::min(kPanel, n - n0) / kVecCols * kVecCols;  // columns in whole vectors
+    const float* a = r0 + n0;
+    const float* b = r1 != nullptr ? r1 + n0 : nullptr;
+    bf16_t* dst = out + static_cast<ptrdiff_t>(n0) * 2 * kp + static_cast<ptrdiff_t>(p) * width * 2;
+    int c = 0;
+    if (b != nullptr)
+      for (; c < whole; c += kVecCols)
+        _mm512_storeu_si512(dst + 2 * c, cvt_pairs(_mm512_loadu_ps(a + c), _mm512_loadu_ps(b + c)));
+    else
+      for (; c < whole; c += kVecCols)
+        _mm512_storeu_si512(dst + 2 * c, cvt_pairs(_mm512_loadu_ps(a + c), _mm512_setzero_ps()));
+    if (c < width) {  // the last vector of the last panel: zeros past n
+      const int count = n - n0 - c;
+      const __m512 x1 = b != nullptr ? load_masked(b + c, count) : _mm512_setzero_ps();
+      _mm512_storeu_si512(dst + 2 * c, cvt_pairs(load_masked(a + c, count), x1));
+    }
   }
 }
 
