@@ -322,6 +322,9 @@ class BatchSim {
   const BatchConfig& config() const { return config_; }
   const Layout& layout() const { return layout_; }
   int num_envs() const { return config_.num_envs; }
+  // The arena step() and reset() run in (config.threads slots): callers that alternate their own parallel
+  // work with steps run it here too, so that the worker threads stay in one arena.
+  tbb::task_arena& arena() { return *arena_; }
   const BatchState& state() const { return state_; }
   // Episodes that ended in the last step(), in env order.
   std::span<const EpisodeStats> finished() const { return finished_; }

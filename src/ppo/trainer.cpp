@@ -308,9 +308,9 @@ IterationMetrics Trainer::iterate() {
   IterationMetrics m;
   (void)comm_->take_seconds();
   if (need_restart_) restart_envs();
-  const int threads = cfg_.threads > 0 ? cfg_.threads : tbb::this_task_arena::max_concurrency();
-  tbb::task_arena arena(threads);
-  arena.execute([&] {
+  // In the simulator's arena: its steps and this iteration's other parallel work (inference, learning) then
+  // share one set of worker threads, which no longer move between two arenas at every rollout step.
+  sim_->arena().execute([&] {
     rollout(m);
     const Clock::time_point t_learn = Clock::now();
     compute_targets(m);
