@@ -313,6 +313,16 @@ HNS_BF16_TARGET void pack_pair_rows(const float* r0, const float* r1, int n, int
   }
 }
 
+// Rows [0, k) of x (ldx floats apart), columns [0, n), into pairs [p0, p0 + (k + 1) / 2) of every panel (kp
+// pairs per panel); an odd k's last pair has a zero row.
+HNS_BF16_TARGET void pack_row_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int p0,
+                                    bf16_t* out) {
+  for (int p = 0; p < pairs(k); ++p) {
+    const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx;
+    pack_pair_rows(r0, 2 * p + 1 < k ? r0 + ldx : nullptr, n, kp, p0 + p, out);
+  }
+}
+
 // Zeros in the pairs [k2, kp) of every panel (the padding of k for AMX).
 void zero_padding_pairs(int k2, int kp, int n, bf16_t* out) {
   if (kp == k2) return;
@@ -328,14 +338,7 @@ HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, 
   const int k2 = pairs(k);
   zero_padding_pairs(k2, kp, n, out);
   // (pack_pair_rows writes whole vectors of 16 columns, zeros past n: the padding of the last panel.)
-  if (!transpose && col_map == nullptr) {
-    for (int p = 0; p < k2; ++p) {
-      const float* r0 = w + 2 * static_cast<ptrdiff_t>(p) * ldw;
-      const float* r1 = 2 * p + 1 < k ? r0 + ldw : nullptr;
-      pack_pair_rows(r0, r1, n, kp, p, out);
-    }
-    return;
-  }
+  if (!transpose && col_map == nullptr) return pack_row_pairs(w, ldw, k, n, kp, 0, out);
   if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
   if (transpose && col_map == nullptr) {
     // b's rows are w's columns: kSweepPairs pairs (a cache line of w's row) per sweep down w's rows, so
@@ -604,10 +607,7 @@ void convert_a_transposed_pairs(const float* x, ptrdiff_t ldx, int k, int rows, 
 
 void pack_b_rows_pairs(const float* x, ptrdiff_t ldx, int k, int n, int kp, int p0, bf16_t* out) {
   check_pairs(k, kp, p0);
-  for (int p = 0; p < pairs(k); ++p) {
-    const float* r0 = x + 2 * static_cast<ptrdiff_t>(p) * ldx;
-    pack_pair_rows(r0, 2 * p + 1 < k ? r0 + ldx : nullptr, n, kp, p0 + p, out);
-  }
+  pack_row_pairs(x, ldx, k, n, kp, p0, out);
 }
 
 void gemm_at_pairs(const bf16_t* at, int rows, int k2, const bf16_t* b, int kp, int n, float* c,
