@@ -474,7 +474,9 @@ TEST_P(NnBf16Kernel, LayerProductsStayWithinTheRoundingBoundOfFloat) {
 
 // The attention's scores for one head (nn/attention.cpp): queries and keys read from float rows a stride
 // apart make the documented bf16 product, for key counts around the 16-key blocks and head widths around a
-// block of 16 pairs; nothing past the m columns of a score row is written. The AMX kernels refuse it (the
+// block of 16 pairs (so both paths: at most 16 keys of at most 32 features in registers, the rest through
+// the scratch), every remainder of the four-query groups; nothing past the m columns of a score row is
+// written. The AMX kernels refuse it (the
 // attention keeps float scores there), and so does an odd head width.
 TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
   std::vector<bf16_t> scratch(bf16::attention_scratch_elems(2, 2), kNan);
@@ -485,7 +487,7 @@ TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
     return;
   }
   for (int dh : {2, 8, 30, 32, 34, 64})
-    for (int m : {1, 2, 3, 5, 15, 16, 17, 33, 70}) {
+    for (int m : {1, 2, 3, 4, 5, 6, 15, 16, 17, 33, 70}) {
       // Queries at column 2 and keys at column 4 + dh of m rows of cols floats (a head's slices of q and k).
       const int cols = 2 * dh + 7, ldc = m + 3;
       const std::vector<float> x = random_floats(size_t(m) * cols, uint32_t(dh * 1000 + m));
