@@ -230,9 +230,10 @@ HNS_BF16_INLINE void score_step(const Dword* qp, ptrdiff_t q_dwords, __m512bh ke
     acc[g] = _mm512_dpbf16_ps(acc[g], reinterpret_cast<__m512bh>(_mm512_set1_epi32(qp[g * q_dwords])), keys);
 }
 
-// kGroup queries (bf16 pairs, the next query q_dwords after the last at qb) against one block of 16 keys
-// (kt, as key_pairs reads it), each score one vdpbf16ps chain over the pairs 0 .. k2 - 1 in order, its
-// first `lanes` keys stored. Keys in registers: at most 16 pairs, unrolled so that kt stays there.
+// kGroup queries (bf16 pairs: the first query's at qb, each next one q_dwords after the one before) against
+// one block of 16 keys (kt, as key_pairs reads it), each score one vdpbf16ps chain over the pairs 0 .. k2 - 1
+// in order; the keys that `lanes` selects are stored. Keys in registers: at most 16 pairs, unrolled so that
+// kt stays there.
 template <int kGroup, class Keys>
 HNS_BF16_INLINE void score_group(const Dword* qb, ptrdiff_t q_dwords, int k2, const Keys& kt, __mmask16 lanes,
                                  float* out, ptrdiff_t ld) {
@@ -248,7 +249,8 @@ HNS_BF16_INLINE void score_group(const Dword* qb, ptrdiff_t q_dwords, int k2, co
   for (int g = 0; g < kGroup; ++g) _mm512_mask_storeu_ps(out + g * ld, lanes, acc[g]);
 }
 
-// m queries against one block of keys, four at a time (four independent chains), then the last one to three.
+// m queries against one block of keys, four at a time (four independent chains), then the last one to three
+// (each query's pairs q_dwords after the one before).
 template <class Keys>
 HNS_BF16_INLINE void score_queries(const Dword* qb, ptrdiff_t q_dwords, int m, int k2, const Keys& kt,
                                    __mmask16 lanes, float* out, ptrdiff_t ld) {
@@ -277,8 +279,10 @@ HNS_BF16_INLINE void convert_pairs(const float* x, int dh, bf16_t* out) {
 
 // attention_scores for at most 16 keys of at most 32 features (both models' heads have 32): the keys' pairs
 // stay in registers after their transposition (the general path below stores them and loads them back for
-// every group of queries), and each query's pairs are one vector on the stack. The same chains, so the
-// same bits, at about 60 % of the general path's time per call (quadrant's 1-8 entities).
+// every group of queries), and each query's pairs are one vector on the stack, converted four at a time
+// just before they are used (converting all of them first measured slower: 116 against 95 time-stamp cycles
+// per call for 1-8 keys). The same chains, so the same bits; src/nn/README.md "The attention's scores with
+// the keys in registers" has its speed.
 HNS_BF16_INLINE void scores_in_registers(const float* q, ptrdiff_t q_stride, const float* k,
                                          ptrdiff_t k_stride, int m, int dh, float* out, ptrdiff_t ld) {
   const int k2 = dh / 2;

@@ -476,8 +476,7 @@ TEST_P(NnBf16Kernel, LayerProductsStayWithinTheRoundingBoundOfFloat) {
 // apart make the documented bf16 product, for key counts around the 16-key blocks and head widths around a
 // block of 16 pairs (so both paths: at most 16 keys of at most 32 features in registers, the rest through
 // the scratch), every remainder of the four-query groups; nothing past the m columns of a score row is
-// written. The AMX kernels refuse it (the
-// attention keeps float scores there), and so does an odd head width.
+// written. The AMX kernels refuse it (the attention keeps float scores there), and so does an odd head width.
 TEST_P(NnBf16Kernel, AttentionScoresMatchTheirDefinition) {
   std::vector<bf16_t> scratch(bf16::attention_scratch_elems(2, 2), kNan);
   if (amx()) {
