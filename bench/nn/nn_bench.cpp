@@ -1,6 +1,8 @@
 // Policy + value network throughput for both presets, next to a plain Eigen GEMM of the LSTM's shape in the
-// same run (the machine's peak reference). Agent-steps/s are reported as items/s, achieved GFLOP/s as a
-// counter (FLOP counting as in nn/nn_bench.hpp). Arguments: preset (0 = paper, 1 = small), TBB threads.
+// same run (the machine's peak reference); where the CPU has AVX512-BF16 also the bf16 forms, the bf16 GEMM
+// reference and (with the vdpbf16ps kernel) one attention head's bf16 scores. Agent-steps/s are reported as
+// items/s, achieved GFLOP/s as a counter (FLOP counting as in nn/nn_bench.hpp). Arguments: preset (0 = paper,
+// 1 = small), TBB threads.
 //   build-nn/bench/nn/bench_nn --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 #include "nn/nn_bench.hpp"
 #include "nn/actor_critic.hpp"
@@ -133,6 +135,25 @@ void BM_Bf16Gemm(benchmark::State& state) {
       benchmark::Counter(2.0 * m * k * n * threads * 1e-9, benchmark::Counter::kIsIterationInvariantRate);
 }
 
+// The bf16 attention scores of one head of 32 features (both models' heads) for `keys` entities: the q·k
+// products of nn/attention.cpp's forward pass, queries and keys read from the rows of a q/k projection of
+// the `small` model (128 floats: q of both heads, then k). Up to 16 keys take the kernel's path that keeps
+// the keys in registers, more the general one. Items: scores.
+void BM_Bf16AttentionScores(benchmark::State& state) {
+  const int keys = static_cast<int>(state.range(0)), dh = 32, row = 128;
+  std::vector<float> qk(static_cast<size_t>(keys) * row);
+  for (size_t i = 0; i < qk.size(); ++i) qk[i] = static_cast<float>(i % 17) * 0.125f - 1.0f;
+  std::vector<float> scores(static_cast<size_t>(keys) * keys);
+  std::vector<bf16::bf16_t> scratch(bf16::attention_scratch_elems(keys, dh));
+  for (auto _ : state) {
+    bf16::attention_scores(qk.data(), row, qk.data() + row / 2, row, keys, dh, scores.data(), keys,
+                           scratch.data());
+    benchmark::DoNotOptimize(scores.data());
+    benchmark::ClobberMemory();
+  }
+  state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * keys * keys);
+}
+
 void register_benchmarks() {
   auto threads = [](benchmark::internal::Benchmark* b) {
     b->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -152,6 +173,16 @@ void register_benchmarks() {
   if (!bf16::available()) return;
   threads(benchmark::RegisterBenchmark("BM_Bf16Gemm", BM_Bf16Gemm));
   networks("Bf16", Precision::kBf16);
+  // The scores are a vdpbf16ps kernel of their own (the AMX kernels keep float scores).
+  if (bf16::kernel() == bf16::Kernel::kAvx512Bf16)
+    benchmark::RegisterBenchmark("BM_Bf16AttentionScores", BM_Bf16AttentionScores)
+        ->ArgName("keys")
+        ->Arg(2)
+        ->Arg(4)
+        ->Arg(7)
+        ->Arg(16)
+        ->Arg(17)
+        ->Unit(benchmark::kNanosecond);
 }
 
 }  // namespace
