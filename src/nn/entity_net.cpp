@@ -244,20 +244,22 @@ void EntityNet::forward(const Weights& params, const ObsNormView& norm, const Ne
   // Lidar conv into main[:, S:), then the embeddings of self and of every entity type.
   const CMat main(b.main, rows, m);
   conv_.forward(params, CMat(b.lidar_n, rows, l), Mat(b.main + s, rows, conv_.out_width(), m));
+  // The self embedding and every entity type's x_self part multiply main: in bf16 it is converted once.
+  const SharedRows main_rows = convert_shared(params, main);
   const EntitySlots self_slot{b.x, rows, e, d, e - 1, 1};
-  self_embed_.forward(params, main, self_slot.slot(0));
+  self_embed_.forward(params, main_rows, self_slot.slot(0));
   const Mat scratch(b.embed_rows, rows, d);
   if (na > 0)
-    agents_embed_.forward(params, main, CMat(b.agents_n, rows * na, o.agent_features),
+    agents_embed_.forward(params, main_rows, CMat(b.agents_n, rows * na, o.agent_features),
                           {b.x, rows, e, d, 0, na}, scratch);
   if (nb > 0)
-    boxes_embed_.forward(params, main, CMat(b.boxes_n, rows * nb, o.box_features), {b.x, rows, e, d, na, nb},
-                         scratch);
+    boxes_embed_.forward(params, main_rows, CMat(b.boxes_n, rows * nb, o.box_features),
+                         {b.x, rows, e, d, na, nb}, scratch);
   if (nr > 0)
-    ramps_embed_.forward(params, main, CMat(b.ramps_n, rows * nr, o.ramp_features),
+    ramps_embed_.forward(params, main_rows, CMat(b.ramps_n, rows * nr, o.ramp_features),
                          {b.x, rows, e, d, na + nb, nr}, scratch);
   if (nc > 0)
-    sites_embed_.forward(params, main, CMat(b.sites_n, rows * nc, o.site_features),
+    sites_embed_.forward(params, main_rows, CMat(b.sites_n, rows * nc, o.site_features),
                          {b.x, rows, e, d, na + nb + nr, nc}, scratch);
 
   // Masked residual self-attention, masked mean pool, concat with the self embedding, layer norm.

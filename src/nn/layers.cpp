@@ -37,8 +37,8 @@ void Dense::forward_linear(const Weights& params, CMat x, Mat z) const {
   matmul(params, id_, params.values + w_, x, z, false);
 }
 
-void Dense::forward(const Weights& params, CMat x, Mat y) const {
-  assert(x.cols == in_ && y.cols == out_ && x.rows == y.rows);
+void Dense::forward(const Weights& params, const SharedRows& x, Mat y) const {
+  assert(x.mat.cols == in_ && y.cols == out_ && x.mat.rows == y.rows);
   dense_forward(params, id_, x, params.values + w_, params.values + b_, act_, y);
 }
 
@@ -417,11 +417,11 @@ EntityEmbedding::EntityEmbedding(ParamLayout& layout, const std::string& name, i
   ent_id_ = layout.add_product({w_ + static_cast<size_t>(main_width) * width, features, width, {}});
 }
 
-void EntityEmbedding::forward(const Weights& params, CMat main, CMat ent, const EntitySlots& out,
+void EntityEmbedding::forward(const Weights& params, const SharedRows& main, CMat ent, const EntitySlots& out,
                               Mat scratch) const {
   const float* w_ent = params.values + w_ + static_cast<size_t>(main_width_) * width_;
   // The x_self part once per row, with the bias.
-  dense_forward(params, main_id_, main, params.values + w_, params.values + b_, Activation::kNone, scratch);
+  matmul_bias(params, main_id_, params.values + w_, params.values + b_, main, scratch);
   // The entity part: every slot starts from its row's x_self part (the broadcast), one strided product per
   // entity slot adds to it, then the ReLU.
   for (int r = 0; r < out.rows; ++r)

@@ -47,7 +47,8 @@ class Dense {
   // 2 * rows * in * out.
   double flops(int rows) const { return 2.0 * rows * in_ * out_; }
 
-  void forward(const Weights& params, CMat x, Mat y) const;
+  // x: rows, or rows with their bf16 form (convert_shared).
+  void forward(const Weights& params, const SharedRows& x, Mat y) const;
   // z = x W without bias or activation (for fused epilogues).
   void forward_linear(const Weights& params, CMat x, Mat z) const;
   // dy: gradient w.r.t. y, overwritten with the pre-activation gradient (using y for the ReLU mask).
@@ -161,8 +162,10 @@ class EntityEmbedding {
     return 2.0 * rows * main_width_ * width_ + 2.0 * entities * features_ * width_;
   }
 
-  // main [rows, main_width]; ent [rows * count, features]; scratch [rows, width]. Writes out's slots.
-  void forward(const Weights& params, CMat main, CMat ent, const EntitySlots& out, Mat scratch) const;
+  // main [rows, main_width] (with its bf16 form where the caller converted it once for every entity type:
+  // convert_shared); ent [rows * count, features]; scratch [rows, width]. Writes out's slots.
+  void forward(const Weights& params, const SharedRows& main, CMat ent, const EntitySlots& out,
+               Mat scratch) const;
   // dout: gradient w.r.t. X (same slots, read only); out: the forward's X (ReLU mask).
   // scratch_rows [rows, width], scratch_ent [rows * count, width]. Accumulates dW, db; adds to d_main.
   void backward(const Weights& params, float* grads, CMat main, CMat ent, const EntitySlots& out,

@@ -24,6 +24,7 @@ size_t align_elems(size_t n) {
 // products' buffers.
 struct Scratch {
   FloatBuffer a, b;
+  FloatBuffer shared_a;        // bf16: rows that several products multiply (convert_shared)
   FloatBuffer panel;           // fp32: a padded panel of the rows after the last whole one, x then y
   FloatBuffer pack_a, pack_b;  // fp32: Eigen's packed blocks of its two operands
   static float* take_floats(FloatBuffer& buf, size_t floats) {
@@ -207,14 +208,29 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
   bf16::gemm(a, x.rows, x.cols, p.packed->matrix(id), y.cols, y.data, y.stride, accumulate);
 }
 
-void matmul_bias(const Weights& p, int id, const float* w, const float* b, CMat x, Mat y) {
+SharedRows convert_shared(const Weights& p, CMat x) {
+  if (!p.bf16()) return x;
+  HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
+  bf16_t* a = Scratch::take(scratch.shared_a, bf16::a_elems(x.rows, x.cols));
+  bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
+  return {x, a};
+}
+
+void matmul_bias(const Weights& p, int id, const float* w, const float* b, const SharedRows& x, Mat y) {
+  const CMat& xm = x.mat;
   if (!p.bf16()) {
     for (int r = 0; r < y.rows; ++r) std::memcpy(y.row(r), b, sizeof(float) * y.cols);
-    matmul_fp32(w, x, y, true);
+    matmul_fp32(w, xm, y, true);
     return;
   }
-  const bf16_t* a = convert_x(p, id, x, y);
-  bf16::gemm_bias(a, x.rows, x.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
+  const bf16_t* a = x.bf16;
+  if (a == nullptr) {
+    a = convert_x(p, id, xm, y);
+  } else {
+    const ProductMatrix& m = p.packed->info(id);
+    HNS_NN_CHECK(m.rows == xm.cols && m.cols == y.cols && xm.rows == y.rows, "bf16 product of another shape");
+  }
+  bf16::gemm_bias(a, xm.rows, xm.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
 }
 
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate) {

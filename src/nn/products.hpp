@@ -128,9 +128,22 @@ struct Weights {
 // y (+)= x M for product matrix `id` of p, whose float form is w [x.cols, y.cols] (contiguous; it may be a
 // reordered copy of the stored matrix, as the registration's col_map describes).
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate);
+// Rows that several products multiply (the entity embeddings' x_self parts all multiply the same main rows)
+// with their bf16 form, converted once by convert_shared; a plain CMat converts to rows without one (each
+// bf16 product converts them itself). Valid until the same thread's next convert_shared, while the rows stay
+// as they were.
+struct SharedRows {
+  SharedRows(CMat rows) : mat(rows) {}  // NOLINT(google-explicit-constructor): the plain case
+  SharedRows(CMat rows, const bf16::bf16_t* converted) : mat(rows), bf16(converted) {}
+  CMat mat;
+  const bf16::bf16_t* bf16 = nullptr;
+};
+// x in bf16 once, in this thread's scratch for shared rows (fp32 weights: nothing converted).
+SharedRows convert_shared(const Weights& p, CMat x);
 // y = b + x M, the bias b [y.cols] in every row: the same bits as y's rows set to b and matmul accumulating
 // (fp32 and the AMX kernels do just that; the vdpbf16ps kernel starts its sums from b instead of that pass).
-void matmul_bias(const Weights& p, int id, const float* w, const float* b, CMat x, Mat y);
+// x's bf16 form, where it has one, is used as it is: the same bits as converting x here.
+void matmul_bias(const Weights& p, int id, const float* w, const float* b, const SharedRows& x, Mat y);
 // dx (+)= dz M^T, the same matrix: w [dx.cols, dz.cols].
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate);
 // dw (+)= x^T dz: dw [x.cols, dz.cols] contiguous (a weight gradient, summed over the rows).

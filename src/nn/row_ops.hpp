@@ -56,8 +56,8 @@ inline void axpy(float a, const float* x, float* y, int n) {
 
 // y = act(x w + b), w [x.cols, y.cols] (product matrix id of p): the bias is the product's starting value (no
 // zeroing pass, no separate bias pass), the activation one pass over y while it is in cache.
-inline void dense_forward(const Weights& p, int id, CMat x, const float* w, const float* b, Activation act,
-                          Mat y) {
+inline void dense_forward(const Weights& p, int id, const SharedRows& x, const float* w, const float* b,
+                          Activation act, Mat y) {
   matmul_bias(p, id, w, b, x, y);
   if (act != Activation::kNone)
     for (int r = 0; r < y.rows; ++r) kernels::bias_act(y.row(r), nullptr, act, y.cols);

@@ -1,6 +1,7 @@
 // The layers' float products (nn/products.hpp with fp32 weights): the same bits as the Eigen expressions
 // they stand for, and no memory taken per call once a thread has met its largest shape. The bf16 weight
-// gradients staged over several chunks: the same bits as one product per chunk.
+// gradients staged over several chunks, and rows converted once for several products: the same bits as one
+// product per chunk, and as converting per product.
 #include <gtest/gtest.h>
 #include <malloc.h>
 #include <sys/resource.h>
@@ -145,6 +146,53 @@ TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
   stage.flush();
   EXPECT_TRUE(stage.empty());
   for (size_t i = 0; i < got.size(); ++i) EXPECT_TRUE(same_bits(got[i].dw, want[i].dw)) << "gradient " << i;
+  bf16::set_kernel(saved);
+}
+
+// Rows converted once for several products (convert_shared: the entity embeddings' x_self parts) give each
+// product the bits of converting them itself, also with other products in between (which reuse the
+// per-thread scratch of the per-call conversions), with both bf16 kernels' layouts; fp32 weights convert
+// nothing.
+TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
+  ParamLayout layout;
+  const size_t w0 = layout.add_kernel_xavier("w0", 281, 64, 281.0f, 64.0f);
+  const size_t w1 = layout.add_kernel_xavier("w1", 281, 40, 281.0f, 40.0f);
+  const size_t w2 = layout.add_kernel_xavier("w2", 33, 64, 33.0f, 64.0f);
+  const int id0 = layout.add_product({w0, 281, 64, {}});
+  const int id1 = layout.add_product({w1, 281, 40, {}});
+  const int id2 = layout.add_product({w2, 33, 64, {}});
+  const std::vector<float> values = testing::random_vector(layout.buffer_floats(), 5);
+  const std::vector<float> bias = testing::random_vector(64, 6);
+  const std::vector<float> x = testing::random_vector(size_t(40) * 290, 7);
+  const std::vector<float> other = testing::random_vector(size_t(40) * 33, 8);
+  const CMat rows(x.data(), 40, 281, 290);
+  EXPECT_EQ(convert_shared(Weights(values.data()), rows).bf16, nullptr);
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
+  const bf16::Kernel saved = bf16::kernel();
+  for (const bf16::Kernel kern : {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated}) {
+    SCOPED_TRACE(bf16::kernel_name(kern));
+    bf16::set_kernel(kern);
+    PackedWeights packed(layout);
+    packed.pack(values.data(), false);
+    const Weights p(values.data(), &packed);
+    auto run = [&](const SharedRows& in, std::vector<float>& y0, std::vector<float>& y1,
+                   std::vector<float>& y2) {
+      y0.assign(size_t(40) * 64, 0.0f);
+      y1.assign(size_t(40) * 40, 0.0f);
+      y2.assign(size_t(40) * 64, 0.0f);
+      matmul_bias(p, id0, values.data() + w0, bias.data(), in, Mat(y0.data(), 40, 64));
+      matmul(p, id2, values.data() + w2, CMat(other.data(), 40, 33), Mat(y2.data(), 40, 64), false);
+      matmul_bias(p, id1, values.data() + w1, bias.data(), in, Mat(y1.data(), 40, 40));
+    };
+    std::vector<float> want0, want1, want2, got0, got1, got2;
+    run(rows, want0, want1, want2);
+    const SharedRows shared = convert_shared(p, rows);
+    ASSERT_NE(shared.bf16, nullptr);
+    run(shared, got0, got1, got2);
+    EXPECT_TRUE(same_bits(got0, want0));
+    EXPECT_TRUE(same_bits(got1, want1));
+    EXPECT_TRUE(same_bits(got2, want2));
+  }
   bf16::set_kernel(saved);
 }
 
