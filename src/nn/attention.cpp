@@ -286,9 +286,11 @@ void SelfAttention::forward(const Weights& params, CMat x, const float* mask, in
     xin = CMat(bufs.xn, n, d);
   }
   permute_qk(params.values + qk_.w_offset(), params.values + qk_.b_offset(), d, bufs.w_qk);
-  dense_forward(params, qk_id_, xin, bufs.w_qk, bufs.w_qk + static_cast<ptrdiff_t>(d) * 2 * d,
+  // The q/k and v projections multiply the same rows: in bf16 they are converted once for both.
+  const SharedRows xs = convert_shared(params, xin);
+  dense_forward(params, qk_id_, xs, bufs.w_qk, bufs.w_qk + static_cast<ptrdiff_t>(d) * 2 * d,
                 Activation::kNone, Mat(bufs.qk, n, 2 * d));
-  v_.forward(params, xin, Mat(bufs.v, n, d));
+  v_.forward(params, xs, Mat(bufs.v, n, d));
   const float scale = 1.0f / std::sqrt(static_cast<float>(dh));
   const ptrdiff_t qk_stride = 2 * d;
   const bool bf16_core = bf16_scores(params, dh);

@@ -128,10 +128,10 @@ struct Weights {
 // y (+)= x M for product matrix `id` of p, whose float form is w [x.cols, y.cols] (contiguous; it may be a
 // reordered copy of the stored matrix, as the registration's col_map describes).
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate);
-// Rows that several products multiply (the entity embeddings' x_self parts all multiply the same main rows)
-// with their bf16 form, converted once by convert_shared; a plain CMat converts to rows without one (each
-// bf16 product converts them itself). Valid until the same thread's next convert_shared, while the rows stay
-// as they were.
+// Rows that several products multiply, with their bf16 form converted once by convert_shared: the entity
+// embeddings' x_self parts all multiply the same main rows, the attention's q/k and v projections its normed
+// input. A plain CMat converts to rows without one (each bf16 product converts them itself). The bf16 form
+// is valid until the same thread's next convert_shared, while the rows stay as they were.
 struct SharedRows {
   SharedRows(CMat rows) : mat(rows) {}  // NOLINT(google-explicit-constructor): the plain case
   SharedRows(CMat rows, const bf16::bf16_t* converted) : mat(rows), bf16(converted) {}
