@@ -226,9 +226,10 @@ void matmul_bias(const Weights& p, int id, const float* w, const float* b, const
   const bf16_t* a = x.bf16;
   if (a == nullptr) {
     a = convert_x(p, id, xm, y);
-  } else {
+  } else {  // convert_shared's checks, and the shape's
     const ProductMatrix& m = p.packed->info(id);
     HNS_NN_CHECK(m.rows == xm.cols && m.cols == y.cols && xm.rows == y.rows, "bf16 product of another shape");
+    HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
   }
   bf16::gemm_bias(a, xm.rows, xm.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
 }
