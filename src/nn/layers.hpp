@@ -162,7 +162,7 @@ class EntityEmbedding {
     return 2.0 * rows * main_width_ * width_ + 2.0 * entities * features_ * width_;
   }
 
-  // main [rows, main_width] (with its bf16 form where the caller converted it once for every entity type:
+  // main [rows, main_width] (with its bf16 form where the caller converted it once for every embedding:
   // convert_shared); ent [rows * count, features]; scratch [rows, width]. Writes out's slots.
   void forward(const Weights& params, const SharedRows& main, CMat ent, const EntitySlots& out,
                Mat scratch) const;

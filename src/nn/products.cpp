@@ -213,7 +213,7 @@ SharedRows convert_shared(const Weights& p, CMat x) {
   HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
   bf16_t* a = Scratch::take(scratch.shared_a, bf16::a_elems(x.rows, x.cols));
   bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
-  return {x, a};
+  return {x, a, bf16::kernel()};
 }
 
 void matmul_bias(const Weights& p, int id, const float* w, const float* b, const SharedRows& x, Mat y) {
@@ -223,13 +223,14 @@ void matmul_bias(const Weights& p, int id, const float* w, const float* b, const
     matmul_fp32(w, xm, y, true);
     return;
   }
-  const bf16_t* a = x.bf16;
+  const bf16_t* a = x.converted;
   if (a == nullptr) {
     a = convert_x(p, id, xm, y);
-  } else {  // convert_shared's checks, and the shape's
+  } else {  // convert_x's checks, and that the rows were converted for the kernel in use
     const ProductMatrix& m = p.packed->info(id);
     HNS_NN_CHECK(m.rows == xm.cols && m.cols == y.cols && xm.rows == y.rows, "bf16 product of another shape");
     HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
+    HNS_NN_CHECK(x.kernel == bf16::kernel(), "bf16 rows converted for another kernel");
   }
   bf16::gemm_bias(a, xm.rows, xm.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
 }

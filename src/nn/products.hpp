@@ -129,14 +129,19 @@ struct Weights {
 // reordered copy of the stored matrix, as the registration's col_map describes).
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate);
 // Rows that several products multiply, with their bf16 form converted once by convert_shared: the entity
-// embeddings' x_self parts all multiply the same main rows, the attention's q/k and v projections its normed
-// input. A plain CMat converts to rows without one (each bf16 product converts them itself). The bf16 form
-// is valid until the same thread's next convert_shared, while the rows stay as they were.
+// embeddings' x_self parts (and the self embedding) all multiply the same main rows, the attention's q/k and
+// v projections its normed input. A plain CMat or Mat converts to rows without one (each bf16 product
+// converts them itself). The bf16 form lives in the converting thread's scratch: only that thread may use
+// it, until its next convert_shared, while the rows stay as they were and the bf16 kernel stays the one it
+// was converted for (`kernel`, checked by each product).
 struct SharedRows {
   SharedRows(CMat rows) : mat(rows) {}  // NOLINT(google-explicit-constructor): the plain case
-  SharedRows(CMat rows, const bf16::bf16_t* converted) : mat(rows), bf16(converted) {}
+  SharedRows(Mat rows) : mat(rows) {}   // NOLINT(google-explicit-constructor): the same
+  SharedRows(CMat rows, const bf16::bf16_t* bf16_rows, bf16::Kernel for_kernel)
+      : mat(rows), converted(bf16_rows), kernel(for_kernel) {}
   CMat mat;
-  const bf16::bf16_t* bf16 = nullptr;
+  const bf16::bf16_t* converted = nullptr;
+  bf16::Kernel kernel = bf16::Kernel::kAvx512Bf16;
 };
 // x in bf16 once, in this thread's scratch for shared rows (fp32 weights: nothing converted).
 SharedRows convert_shared(const Weights& p, CMat x);

@@ -149,10 +149,11 @@ TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
   bf16::set_kernel(saved);
 }
 
-// Rows converted once for several products (convert_shared: the entity embeddings' x_self parts) give each
-// product the bits of converting them itself, also with other products in between (which reuse the
-// per-thread scratch of the per-call conversions), with both bf16 kernels' layouts; fp32 weights convert
-// nothing.
+// Rows converted once for several products (convert_shared: the embeddings' main rows, the attention's
+// projections' input) give each product the bits of converting them itself, also with other products in
+// between (which reuse the per-thread scratch of the per-call conversions), with both bf16 kernels' layouts
+// (AMX's emulated; the tiles where the CPU has them); fp32 weights convert nothing, and rows converted for
+// one kernel are refused by another.
 TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
   ParamLayout layout;
   const size_t w0 = layout.add_kernel_xavier("w0", 281, 64, 281.0f, 64.0f);
@@ -166,10 +167,12 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
   const std::vector<float> x = testing::random_vector(size_t(40) * 290, 7);
   const std::vector<float> other = testing::random_vector(size_t(40) * 33, 8);
   const CMat rows(x.data(), 40, 281, 290);
-  EXPECT_EQ(convert_shared(Weights(values.data()), rows).bf16, nullptr);
+  EXPECT_EQ(convert_shared(Weights(values.data()), rows).converted, nullptr);
   if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
   const bf16::Kernel saved = bf16::kernel();
-  for (const bf16::Kernel kern : {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated}) {
+  std::vector<bf16::Kernel> kernels = {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated};
+  if (bf16::amx_available()) kernels.push_back(bf16::Kernel::kAmx);
+  for (const bf16::Kernel kern : kernels) {
     SCOPED_TRACE(bf16::kernel_name(kern));
     bf16::set_kernel(kern);
     PackedWeights packed(layout);
@@ -187,11 +190,17 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
     std::vector<float> want0, want1, want2, got0, got1, got2;
     run(rows, want0, want1, want2);
     const SharedRows shared = convert_shared(p, rows);
-    ASSERT_NE(shared.bf16, nullptr);
+    EXPECT_NE(shared.converted, nullptr);
     run(shared, got0, got1, got2);
     EXPECT_TRUE(same_bits(got0, want0));
     EXPECT_TRUE(same_bits(got1, want1));
     EXPECT_TRUE(same_bits(got2, want2));
+    // The same rows under another kernel's layout: refused, not misread.
+    const SharedRows other_kernel(
+        rows, shared.converted,
+        kern == bf16::Kernel::kAvx512Bf16 ? bf16::Kernel::kAmxEmulated : bf16::Kernel::kAvx512Bf16);
+    EXPECT_THROW(matmul_bias(p, id0, values.data() + w0, bias.data(), other_kernel, Mat(got0.data(), 40, 64)),
+                 std::logic_error);
   }
   bf16::set_kernel(saved);
 }
