@@ -130,7 +130,7 @@ struct Weights {
 void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumulate);
 // Rows that several products multiply, with their bf16 form converted once by convert_shared: the entity
 // embeddings' x_self parts (and the self embedding) all multiply the same main rows, the attention's q/k and
-// v projections its normed input. A plain CMat or Mat converts to rows without one (each bf16 product
+// v projections their common input. A plain CMat or Mat converts to rows without one (each bf16 product
 // converts them itself). The bf16 form lives in the converting thread's scratch: only that thread may use
 // it, until its next convert_shared, while the rows stay as they were and the bf16 kernel stays the one it
 // was converted for (`kernel`, checked by each product).

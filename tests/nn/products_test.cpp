@@ -22,6 +22,12 @@ namespace {
 using RowMat = Eigen::Matrix<float, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
 using Map = Eigen::Map<const RowMat>;
 
+// Puts back the bf16 kernel in use when the test ends, however it ends.
+struct KernelRestorer {
+  bf16::Kernel saved = bf16::kernel();
+  ~KernelRestorer() { bf16::set_kernel(saved); }
+};
+
 bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
 }
@@ -97,7 +103,7 @@ TEST(NnProducts, FloatProductsEqualTheirEigenExpressionsBitForBit) {
 // staged gradient, and each of the LSTM's inputs alone. Enough rows to fill the stage's blocks several times.
 TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
   if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
-  const bf16::Kernel saved = bf16::kernel();
+  const KernelRestorer restore;
   bf16::set_kernel(bf16::Kernel::kAvx512Bf16);
   const PackedWeights packed{ParamLayout{}};
   const Weights direct(nullptr, &packed);
@@ -146,7 +152,6 @@ TEST(NnProducts, StagedWeightGradientsEqualOneProductPerChunkBitForBit) {
   stage.flush();
   EXPECT_TRUE(stage.empty());
   for (size_t i = 0; i < got.size(); ++i) EXPECT_TRUE(same_bits(got[i].dw, want[i].dw)) << "gradient " << i;
-  bf16::set_kernel(saved);
 }
 
 // Rows converted once for several products (convert_shared: the embeddings' main rows, the attention's
@@ -169,7 +174,7 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
   const CMat rows(x.data(), 40, 281, 290);
   EXPECT_EQ(convert_shared(Weights(values.data()), rows).converted, nullptr);
   if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
-  const bf16::Kernel saved = bf16::kernel();
+  const KernelRestorer restore;
   std::vector<bf16::Kernel> kernels = {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated};
   if (bf16::amx_available()) kernels.push_back(bf16::Kernel::kAmx);
   for (const bf16::Kernel kern : kernels) {
@@ -202,7 +207,6 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
     EXPECT_THROW(matmul_bias(p, id0, values.data() + w0, bias.data(), other_kernel, Mat(got0.data(), 40, 64)),
                  std::logic_error);
   }
-  bf16::set_kernel(saved);
 }
 
 long minor_faults_of_this_thread() {
