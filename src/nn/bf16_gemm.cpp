@@ -86,6 +86,11 @@ HNS_BF16_INLINE __m512 load_masked(const float* p, int count) {
   return _mm512_maskz_loadu_ps(static_cast<__mmask16>((1u << count) - 1u), p);
 }
 
+// The first min(count, 32) of the floats at p as 32 bf16 in order (16 pairs), zeros past count.
+HNS_BF16_INLINE __m512i cvt32_masked(const float* p, int count) {
+  return cvt32(load_masked(p, count), load_masked(p + 16, count - 16));
+}
+
 // ---- the product
 
 // One pair of bf16 read as a 32-bit integer (the broadcast operand of vdpbf16ps); may alias bf16 storage.
@@ -271,7 +276,7 @@ HNS_BF16_INLINE void score_queries(const Dword* qb, ptrdiff_t q_dwords, int m, i
 // dh floats at x as bf16 pairs at out (k2 = dh / 2 dwords), 32 at a time.
 HNS_BF16_INLINE void convert_pairs(const float* x, int dh, bf16_t* out) {
   for (int c = 0; c < dh; c += 32) {
-    const __m512i v = cvt32(load_masked(x + c, dh - c), load_masked(x + c + 16, dh - c - 16));
+    const __m512i v = cvt32_masked(x + c, dh - c);
     const int pairs_here = std::min(16, (dh - c) / 2);
     _mm512_mask_storeu_epi32(out + c, static_cast<__mmask16>((1u << pairs_here) - 1u), v);
   }
@@ -290,7 +295,7 @@ HNS_BF16_INLINE void scores_in_registers(const float* q, ptrdiff_t q_stride, con
 #pragma GCC unroll 16
   for (int j = 0; j < 16; ++j) {
     const float* kj = k + j * k_stride;
-    kt[j] = j < m ? cvt32(load_masked(kj, dh), load_masked(kj + 16, dh - 16)) : _mm512_setzero_si512();
+    kt[j] = j < m ? cvt32_masked(kj, dh) : _mm512_setzero_si512();
   }
   transpose16(kt);
   const __mmask16 lanes = static_cast<__mmask16>((1u << m) - 1u);
@@ -299,7 +304,7 @@ HNS_BF16_INLINE void scores_in_registers(const float* q, ptrdiff_t q_stride, con
     const int group = std::min(4, m - i);
     for (int g = 0; g < group; ++g) {
       const float* qi = q + (i + g) * q_stride;
-      _mm512_store_si512(qp + g * 16, cvt32(load_masked(qi, dh), load_masked(qi + 16, dh - 16)));
+      _mm512_store_si512(qp + g * 16, cvt32_masked(qi, dh));
     }
     score_queries(qp, 16, group, k2, kt, lanes, out + i * ld, ld);
   }
@@ -325,8 +330,7 @@ HNS_BF16_TARGET void attention_scores_avx512(const float* q, ptrdiff_t q_stride,
 #pragma GCC unroll 16
       for (int j = 0; j < 16; ++j) {
         const float* kj = k + (j0 + j) * k_stride + c0;
-        r[j] = j < keys ? cvt32(load_masked(kj, dh - c0), load_masked(kj + 16, dh - c0 - 16))
-                        : _mm512_setzero_si512();
+        r[j] = j < keys ? cvt32_masked(kj, dh - c0) : _mm512_setzero_si512();
       }
       transpose16(r);
       const int rows_here = std::min(16, k2 - p0);
@@ -447,7 +451,7 @@ HNS_BF16_TARGET void convert_a_avx512(const float* x, ptrdiff_t ldx, int rows, i
       _mm512_storeu_si512(o + j, cvt32(_mm512_loadu_ps(xr + j), _mm512_loadu_ps(xr + j + 16)));
     if (j < lda) {
       // The tail (and the zero that pads an odd k), masked: 32 bf16 at most.
-      const __m512i v = cvt32(load_masked(xr + j, k - j), load_masked(xr + j + 16, k - j - 16));
+      const __m512i v = cvt32_masked(xr + j, k - j);
       const int count = static_cast<int>(lda - j);
       _mm512_mask_storeu_epi16(o + j, static_cast<__mmask32>((uint64_t(1) << count) - 1u), v);
     }
