@@ -187,14 +187,24 @@ void matmul_fp32(const float* w, CMat x, Mat y, bool accumulate) {
 
 namespace {
 
-// x in bf16 for a product y (+)= x M by matrix id of p (checked against the shapes), in scratch.
-const bf16_t* convert_x(const Weights& p, int id, CMat x, Mat y) {
+// A product y (+)= x M by matrix id of p in bf16: the shapes, and weights packed for the kernel in use.
+void check_bf16_product(const Weights& p, int id, CMat x, Mat y) {
   const ProductMatrix& m = p.packed->info(id);
   HNS_NN_CHECK(m.rows == x.cols && m.cols == y.cols && x.rows == y.rows, "bf16 product of another shape");
   HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
-  bf16_t* a = Scratch::take(scratch.a, bf16::a_elems(x.rows, x.cols));
+}
+
+// x in bf16, in the A layout of the kernel in use, into buf.
+const bf16_t* convert_rows(CMat x, FloatBuffer& buf) {
+  bf16_t* a = Scratch::take(buf, bf16::a_elems(x.rows, x.cols));
   bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
   return a;
+}
+
+// x in bf16 for a product y (+)= x M by matrix id of p (checked), in scratch.
+const bf16_t* convert_x(const Weights& p, int id, CMat x, Mat y) {
+  check_bf16_product(p, id, x, y);
+  return convert_rows(x, scratch.a);
 }
 
 }  // namespace
@@ -211,9 +221,7 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
 SharedRows convert_shared(const Weights& p, CMat x) {
   if (!p.bf16()) return x;
   HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
-  bf16_t* a = Scratch::take(scratch.shared_a, bf16::a_elems(x.rows, x.cols));
-  bf16::convert_a(x.data, x.stride, x.rows, x.cols, a);
-  return {x, a, bf16::kernel()};
+  return {x, convert_rows(x, scratch.shared_a), bf16::kernel()};
 }
 
 void matmul_bias(const Weights& p, int id, const float* w, const float* b, const SharedRows& x, Mat y) {
@@ -227,9 +235,7 @@ void matmul_bias(const Weights& p, int id, const float* w, const float* b, const
   if (a == nullptr) {
     a = convert_x(p, id, xm, y);
   } else {  // convert_x's checks, and that the rows were converted for the kernel in use
-    const ProductMatrix& m = p.packed->info(id);
-    HNS_NN_CHECK(m.rows == xm.cols && m.cols == y.cols && xm.rows == y.rows, "bf16 product of another shape");
-    HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
+    check_bf16_product(p, id, xm, y);
     HNS_NN_CHECK(x.kernel == bf16::kernel(), "bf16 rows converted for another kernel");
   }
   bf16::gemm_bias(a, xm.rows, xm.cols, p.packed->matrix(id), y.cols, b, y.data, y.stride);
