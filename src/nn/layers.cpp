@@ -2,6 +2,7 @@
 
 #include "nn/row_ops.hpp"
 #include "nn/simd.hpp"
+#include "nn/transpose16.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -283,16 +284,13 @@ void conv1_forward_permuted(const float* w, const float* b, const int32_t* lane_
 
 // conv_backward_lanes for one input channel: the same chains, with the extended input in registers (zero
 // lanes where the memory form holds its zero padding) and each filter's output gradient (a column of dy) at
-// 16 positions by one gather.
+// 16 positions from one transposition: the 16 positions' out_ch gradients (one masked load each, zeros past
+// the length) transposed in registers give every filter's vector at once.
 void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y, Mat dy, float* lanes) {
   const int blocks = conv_padded_length(length) / 16;
   const CircularRow extend(length, kernel);
   const __m512i iota = _mm512_set_epi32(15, 14, 13, 12, 11, 10, 9, 8, 7, 6, 5, 4, 3, 2, 1, 0);
-  // Lane l of block b reads dy's element (16 b + l) * out_ch + f: these bases, plus f.
-  __m512i dy_at[2];
-  for (int b = 0; b < blocks; ++b)
-    dy_at[b] =
-        _mm512_mullo_epi32(_mm512_add_epi32(iota, _mm512_set1_epi32(16 * b)), _mm512_set1_epi32(out_ch));
+  const __mmask16 filters = first_lanes(out_ch);
   __m512 acc[(kConvPermutedMaxKernel + 1) * 16];
   const int naccs = (kernel + 1) * out_ch;
   for (int i = 0; i < naccs; ++i) acc[i] = _mm512_load_ps(lanes + i * 16);
@@ -308,15 +306,21 @@ void conv1_backward_permuted(int length, int out_ch, int kernel, CMat x, CMat y,
                                          _mm512_add_epi32(iota, _mm512_set1_epi32(16 * b + k)), xe_hi);
     float* dr = dy.row(r);
     relu_mask(dr, y.row(r), length * out_ch, dr);
-    for (int f = 0; f < out_ch; ++f)
-      for (int b = 0; b < blocks; ++b) {
-        const __m512i at = _mm512_add_epi32(dy_at[b], _mm512_set1_epi32(f));
-        const __m512 d =
-            _mm512_mask_i32gather_ps(_mm512_setzero_ps(), first_lanes(length - 16 * b), at, dr, 4);
-        acc[kernel * out_ch + f] = _mm512_add_ps(acc[kernel * out_ch + f], d);
+    for (int b = 0; b < blocks; ++b) {
+      // d[f] lane l: dy at position 16 b + l, filter f (zero past the length).
+      __m512i d[16];
+      for (int l = 0; l < 16; ++l)
+        d[l] = 16 * b + l < length
+                   ? _mm512_maskz_loadu_epi32(filters, dr + static_cast<ptrdiff_t>(16 * b + l) * out_ch)
+                   : _mm512_setzero_si512();
+      transpose16(d);
+      for (int f = 0; f < out_ch; ++f) {
+        const __m512 df = _mm512_castsi512_ps(d[f]);
+        acc[kernel * out_ch + f] = _mm512_add_ps(acc[kernel * out_ch + f], df);
         for (int k = 0; k < kernel; ++k)
-          acc[k * out_ch + f] = _mm512_fmadd_ps(d, xk[b * kernel + k], acc[k * out_ch + f]);
+          acc[k * out_ch + f] = _mm512_fmadd_ps(df, xk[b * kernel + k], acc[k * out_ch + f]);
       }
+    }
   }
   for (int i = 0; i < naccs; ++i) _mm512_store_ps(lanes + i * 16, acc[i]);
 }
