@@ -27,7 +27,7 @@ namespace hns::nn::bf16 {
 namespace {
 
 constexpr int kRowsPerTile = 6;       // 6 x 4 accumulators of AVX-512's 32 registers
-constexpr int kMaxGatherCols = 4096;  // columns of a transposed or permuted pack_b
+constexpr int kMaxGatherCols = 4096;  // columns of a permuted pack_b
 
 std::atomic<int> g_kernel{-1};  // the Kernel in use; -1 until kernel() first decides
 
@@ -395,26 +395,32 @@ HNS_BF16_TARGET void pack_b_avx512(const float* w, ptrdiff_t ldw, int k, int n, 
   zero_padding_pairs(k2, kp, n, out);
   // (pack_pair_rows writes whole vectors of 16 columns, zeros past n: the padding of the last panel.)
   if (!transpose && col_map == nullptr) return pack_row_pairs(w, ldw, k, n, kp, 0, out);
-  if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
   if (transpose && col_map == nullptr) {
-    // b's rows are w's columns: kSweepPairs pairs (a cache line of w's row) per sweep down w's rows, so
-    // each line of w is read once rather than once per pair.
-    constexpr int kSweepPairs = 8;
-    thread_local std::vector<float> block;
-    if (block.size() < size_t(2 * kSweepPairs) * kMaxGatherCols)
-      block.resize(size_t(2 * kSweepPairs) * kMaxGatherCols);
-    for (int p0 = 0; p0 < k2; p0 += kSweepPairs) {
-      const int cols = std::min(2 * kSweepPairs, k - 2 * p0);  // w's columns in this sweep
-      for (int j = 0; j < n; ++j) {
-        const float* src = w + j * ldw + 2 * p0;
-        for (int c = 0; c < cols; ++c) block[size_t(c) * n + j] = src[c];
+    // b's rows are w's columns. 16 of w's rows (b's columns j0 ..) times 16 of its columns (b's rows 2 p0 ..)
+    // are transposed in registers, which gives b's rows over those 16 columns: converted in pairs, they are
+    // one vector of each of 8 pairs of the panel. Rows of w past n and columns past k load as zeros: the
+    // padding that pack_pair_rows writes.
+    for (int j0 = 0; j0 < n; j0 += kVecCols) {
+      const int count = std::min(kVecCols, n - j0);
+      const int n0 = j0 / kPanel * kPanel;
+      bf16_t* panel = out + static_cast<ptrdiff_t>(n0) * 2 * kp + 2 * (j0 - n0);
+      const ptrdiff_t pair_elems = static_cast<ptrdiff_t>(panel_width(n, n0)) * 2;
+      for (int p0 = 0; p0 < k2; p0 += 8) {
+        const int cols = std::min(16, k - 2 * p0);  // w's columns in this block
+        const __mmask16 col_mask = static_cast<__mmask16>((1u << cols) - 1u);
+        __m512i r[16];
+        for (int i = 0; i < 16; ++i)
+          r[i] = i < count ? _mm512_maskz_loadu_epi32(col_mask, w + (j0 + i) * ldw + 2 * p0)
+                           : _mm512_setzero_si512();
+        transpose16(r);
+        for (int q = 0; q < 8 && p0 + q < k2; ++q)
+          _mm512_storeu_si512(panel + (p0 + q) * pair_elems,
+                              cvt_pairs(_mm512_castsi512_ps(r[2 * q]), _mm512_castsi512_ps(r[2 * q + 1])));
       }
-      for (int c = 0; c < cols; c += 2)
-        pack_pair_rows(&block[size_t(c) * n], c + 1 < cols ? &block[size_t(c + 1) * n] : nullptr, n, kp,
-                       p0 + c / 2, out);
     }
     return;
   }
+  if (n > kMaxGatherCols) throw std::length_error("bf16::pack_b: more than 4096 columns to gather");
   // General case: gather each row pair of b into two float rows first (b[i, j] = w[i, map(j)], or
   // w[j, map(i)] transposed).
   alignas(64) float row0[kMaxGatherCols];

@@ -302,6 +302,24 @@ TEST_P(NnBf16Kernel, TransposedAndReorderedPackingMatchesTheirDefinition) {
   }
 }
 
+// Packing w [n, k] (row stride ldw) transposed gives, byte for byte, the packing of its transpose b = w^T
+// written out: every pair, every panel, and the zeros past k and past n. Shapes around the 16 x 16 blocks
+// that the transposed packing works in, and the panels of 64 columns.
+TEST_P(NnBf16Kernel, TransposedPackingEqualsPackingTheTransposeBitForBit) {
+  for (int k : {1, 2, 15, 16, 17, 33, 37, 64})
+    for (int n : {1, 15, 16, 17, 64, 70, 130}) {
+      const int ldw = k + 3;
+      const std::vector<float> w = random_floats(size_t(n) * ldw, uint32_t(k * 1000 + n));
+      std::vector<float> b(size_t(k) * n);
+      for (int i = 0; i < k; ++i)
+        for (int j = 0; j < n; ++j) b[size_t(i) * n + j] = w[size_t(j) * ldw + i];
+      std::vector<bf16_t> want(bf16::packed_elems(k, n), kNan), got(bf16::packed_elems(k, n), kNan);
+      bf16::pack_b(b.data(), n, k, n, false, nullptr, want.data());
+      bf16::pack_b(w.data(), ldw, k, n, true, nullptr, got.data());
+      ASSERT_EQ(want, got) << "k " << k << ", n " << n;
+    }
+}
+
 TEST_P(NnBf16Kernel, TransposedProductMatchesItsDefinition) {
   // C = x^T B for x [k, rows] with a row stride (the weight gradient's form), for row counts around the
   // layout's vectors and tiles of 16 and k around AMX's blocks of 16 pairs.
