@@ -406,13 +406,16 @@ void SelfAttention::backward(const Weights& params, float* grads, CMat x, const 
   Mat d_xn(bufs.d_xn, n, d);
   // Wqk's gradient in the permuted order, then added to the interleaved parameter gradient.
   const CMat d_qk(bufs.d_qk, n, 2 * d);
-  matmul_grad(params, xin, d_qk, bufs.dw_qk, false);
+  // The q/k and v weight gradients multiply the same rows: in bf16 their transpose is converted once for
+  // both.
+  const SharedRows xin_t = convert_shared_t(params, xin);
+  matmul_grad(params, xin_t, d_qk, bufs.dw_qk, false);
   float* db_qk = bufs.dw_qk + static_cast<ptrdiff_t>(d) * 2 * d;
   std::memset(db_qk, 0, sizeof(float) * 2 * d);
   add_col_sums(db_qk, d_qk);
   unpermute_qk_add(bufs.dw_qk, d, grads + qk_.w_offset(), grads + qk_.b_offset());
   matmul_t(params, qk_id_, bufs.w_qk, d_qk, d_xn, false);
-  v_.backward_preact(params, grads, xin, CMat(bufs.d_v, n, d), d_xn, true);
+  v_.backward_preact(params, grads, xin_t, CMat(bufs.d_v, n, d), d_xn, true);
   // dx: compact first (in d_xn; the residual path included), then moved to the entities' rows.
   if (pre_ln_) ln_pre_.backward(params, grads, xc, bufs.ln_pre, d_xn, d_xn);
   scatter_compact(d_xn, bufs.d_res, bufs.live, n_real, mask, dx);

@@ -328,8 +328,9 @@ void EntityNet::backward(const Weights& params, float* grads, int sequences, int
     for (int i = 0; i < d; ++i) dst[i] += src[i];
   }
 
-  // Embeddings (gradient w.r.t. main accumulated), then the lidar conv's share of main.
-  const CMat main(b.main, rows, m);
+  // Embeddings (gradient w.r.t. main accumulated), then the lidar conv's share of main. Their weight
+  // gradients' x_self parts all multiply main: in bf16 its transpose is converted once for them.
+  const SharedRows main = convert_shared_t(params, CMat(b.main, rows, m));
   const Mat d_main(b.d_main, rows, m);
   self_embed_.backward(params, grads, main, self_slot.slot(0), d_self_slot.slot(0), d_main, false);
   const Mat scratch_rows(b.embed_rows, rows, d);

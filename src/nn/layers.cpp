@@ -43,16 +43,16 @@ void Dense::forward(const Weights& params, const SharedRows& x, Mat y) const {
   dense_forward(params, id_, x, params.values + w_, params.values + b_, act_, y);
 }
 
-void Dense::backward(const Weights& params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
+void Dense::backward(const Weights& params, float* grads, const SharedRows& x, CMat y, Mat dy, Mat dx,
                      bool accumulate_dx) const {
   if (act_ == Activation::kRelu)
     for (int r = 0; r < dy.rows; ++r) relu_mask(dy.row(r), y.row(r), out_, dy.row(r));
   backward_preact(params, grads, x, dy, dx, accumulate_dx);
 }
 
-void Dense::backward_preact(const Weights& params, float* grads, CMat x, CMat dz, Mat dx,
+void Dense::backward_preact(const Weights& params, float* grads, const SharedRows& x, CMat dz, Mat dx,
                             bool accumulate_dx) const {
-  assert(x.cols == in_ && dz.cols == out_ && x.rows == dz.rows);
+  assert(x.mat.cols == in_ && dz.cols == out_ && x.mat.rows == dz.rows);
   matmul_grad(params, x, dz, grads + w_, true);
   add_col_sums(grads + b_, dz);
   if (dx.empty()) return;
@@ -436,7 +436,7 @@ void EntityEmbedding::forward(const Weights& params, const SharedRows& main, CMa
     kernels::bias_act(out.at(r, 0), nullptr, Activation::kRelu, out.count * width_);
 }
 
-void EntityEmbedding::backward(const Weights& params, float* grads, CMat main, CMat ent,
+void EntityEmbedding::backward(const Weights& params, float* grads, const SharedRows& main, CMat ent,
                                const EntitySlots& out, const EntitySlots& dout, Mat scratch_rows,
                                Mat scratch_ent, Mat d_main) const {
   // dz[r * count + e] = dout[r, e] masked by ReLU; dsum[r] = sum_e dz[r * count + e].

@@ -52,11 +52,12 @@ class Dense {
   // z = x W without bias or activation (for fused epilogues).
   void forward_linear(const Weights& params, CMat x, Mat z) const;
   // dy: gradient w.r.t. y, overwritten with the pre-activation gradient (using y for the ReLU mask).
-  // Accumulates dW, db; writes dx (or adds to it if accumulate_dx); dx may be empty (not needed).
-  void backward(const Weights& params, float* grads, CMat x, CMat y, Mat dy, Mat dx,
+  // Accumulates dW, db; writes dx (or adds to it if accumulate_dx); dx may be empty (not needed). x's
+  // transposed bf16 form, where it has one (convert_shared_t), serves dW.
+  void backward(const Weights& params, float* grads, const SharedRows& x, CMat y, Mat dy, Mat dx,
                 bool accumulate_dx) const;
   // The same from the pre-activation gradient dz.
-  void backward_preact(const Weights& params, float* grads, CMat x, CMat dz, Mat dx,
+  void backward_preact(const Weights& params, float* grads, const SharedRows& x, CMat dz, Mat dx,
                        bool accumulate_dx) const;
 
  private:
@@ -167,8 +168,10 @@ class EntityEmbedding {
   void forward(const Weights& params, const SharedRows& main, CMat ent, const EntitySlots& out,
                Mat scratch) const;
   // dout: gradient w.r.t. X (same slots, read only); out: the forward's X (ReLU mask).
-  // scratch_rows [rows, width], scratch_ent [rows * count, width]. Accumulates dW, db; adds to d_main.
-  void backward(const Weights& params, float* grads, CMat main, CMat ent, const EntitySlots& out,
+  // scratch_rows [rows, width], scratch_ent [rows * count, width]. Accumulates dW, db; adds to d_main. main's
+  // transposed bf16 form, where the caller converted it once for every embedding (convert_shared_t), serves
+  // dW.
+  void backward(const Weights& params, float* grads, const SharedRows& main, CMat ent, const EntitySlots& out,
                 const EntitySlots& dout, Mat scratch_rows, Mat scratch_ent, Mat d_main) const;
 
  private:

@@ -25,6 +25,7 @@ size_t align_elems(size_t n) {
 struct Scratch {
   FloatBuffer a, b;
   FloatBuffer shared_a;        // bf16: rows that several products multiply (convert_shared)
+  FloatBuffer shared_at;       // bf16: x^T that several weight gradients multiply (convert_shared_t)
   FloatBuffer panel;           // fp32: a padded panel of the rows after the last whole one, x then y
   FloatBuffer pack_a, pack_b;  // fp32: Eigen's packed blocks of its two operands
   static float* take_floats(FloatBuffer& buf, size_t floats) {
@@ -275,11 +276,26 @@ const bf16_t* pack_dz(CMat dz) {
 
 }  // namespace
 
-void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate) {
-  if (!p.bf16()) return matmul_grad_fp32(x, dz, dw, accumulate);
-  HNS_NN_CHECK(x.rows == dz.rows, "weight gradient of another row count");
-  if (p.stage != nullptr && p.stage->add(x, dz, dw, accumulate)) return;
-  matmul_grad_bf16(x, pack_dz(dz), dz.cols, dw, accumulate);
+SharedRows convert_shared_t(const Weights& p, CMat x) {
+  if (!p.bf16() || (p.stage != nullptr && GradStage::takes(x.rows))) return x;
+  HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
+  bf16_t* at = Scratch::take(scratch.shared_at, bf16::at_elems(x.cols, x.rows));
+  bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, at);
+  SharedRows shared(x);
+  shared.converted_t = at;
+  shared.kernel = bf16::kernel();
+  return shared;
+}
+
+void matmul_grad(const Weights& p, const SharedRows& x, CMat dz, float* dw, bool accumulate) {
+  const CMat& xm = x.mat;
+  if (!p.bf16()) return matmul_grad_fp32(xm, dz, dw, accumulate);
+  HNS_NN_CHECK(xm.rows == dz.rows, "weight gradient of another row count");
+  if (p.stage != nullptr && p.stage->add(xm, dz, dw, accumulate)) return;
+  const bf16_t* b = pack_dz(dz);
+  if (x.converted_t == nullptr) return matmul_grad_bf16(xm, b, dz.cols, dw, accumulate);
+  HNS_NN_CHECK(x.kernel == bf16::kernel(), "bf16 rows converted for another kernel");
+  bf16::gemm_at(x.converted_t, xm.cols, xm.rows, b, dz.cols, dw, dz.cols, accumulate);
 }
 
 void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate) {
@@ -359,8 +375,12 @@ void GradStage::clear() {
   open_.clear();
 }
 
+bool GradStage::takes(int rows) {
+  return rows <= kMaxRows && bf16::kernel() == bf16::Kernel::kAvx512Bf16;
+}
+
 bool GradStage::stages(bool accumulate, int rows, std::initializer_list<const float*> dws) {
-  if (accumulate && rows <= kMaxRows && bf16::kernel() == bf16::Kernel::kAvx512Bf16) return true;
+  if (accumulate && takes(rows)) return true;
   for (const float* dw : dws)
     if (const int i = find(dw); i >= 0) flush_block(i);
   return false;

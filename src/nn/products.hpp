@@ -77,6 +77,8 @@ class GradStage {
   // Every staged product, each into its gradient.
   void flush();
   bool empty() const { return open_.empty(); }
+  // True where add would stage a weight gradient of this many rows that accumulates.
+  static bool takes(int rows);
   // Drops whatever is staged: a group's workspace may come back with rows still staged when an exception in
   // another group cancelled its last chunk's tasks (and so its flush).
   void clear();
@@ -140,19 +142,26 @@ struct SharedRows {
   SharedRows(CMat rows, const bf16::bf16_t* bf16_rows, bf16::Kernel for_kernel)
       : mat(rows), converted(bf16_rows), kernel(for_kernel) {}
   CMat mat;
-  const bf16::bf16_t* converted = nullptr;
+  const bf16::bf16_t* converted = nullptr;    // the rows as the A of x M (convert_shared)
+  const bf16::bf16_t* converted_t = nullptr;  // x^T as the A of x^T dz (convert_shared_t)
   bf16::Kernel kernel = bf16::Kernel::kAvx512Bf16;
 };
 // x in bf16 once, in this thread's scratch for shared rows (fp32 weights: nothing converted).
 SharedRows convert_shared(const Weights& p, CMat x);
+// x^T in bf16 once, for the weight gradients x^T dz of several products of the same input rows (the
+// attention's q/k and v projections, the embeddings' x_self parts), in this thread's scratch for shared
+// transposed rows, with the same rules of use as convert_shared's. Nothing is converted for fp32 weights, nor
+// where p's stage takes weight gradients of this many rows (it converts them into its blocks).
+SharedRows convert_shared_t(const Weights& p, CMat x);
 // y = b + x M, the bias b [y.cols] in every row: the same bits as y's rows set to b and matmul accumulating
 // (fp32 and the AMX kernels do just that; the vdpbf16ps kernel starts its sums from b instead of that pass).
 // x's bf16 form, where it has one, is used as it is: the same bits as converting x here.
 void matmul_bias(const Weights& p, int id, const float* w, const float* b, const SharedRows& x, Mat y);
 // dx (+)= dz M^T, the same matrix: w [dx.cols, dz.cols].
 void matmul_t(const Weights& p, int id, const float* w, CMat dz, Mat dx, bool accumulate);
-// dw (+)= x^T dz: dw [x.cols, dz.cols] contiguous (a weight gradient, summed over the rows).
-void matmul_grad(const Weights& p, CMat x, CMat dz, float* dw, bool accumulate);
+// dw (+)= x^T dz: dw [x.cols, dz.cols] contiguous (a weight gradient, summed over the rows). x's transposed
+// bf16 form, where it has one, is used as it is: the same bits as converting x here.
+void matmul_grad(const Weights& p, const SharedRows& x, CMat dz, float* dw, bool accumulate);
 // The same for two inputs that share dz (the LSTM's input and recurrent weights): dw0 (+)= x0^T dz and
 // dw1 (+)= x1^T dz, with the same bits as two matmul_grad calls; bf16 converts dz once.
 void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate);

@@ -28,6 +28,22 @@ struct KernelRestorer {
   ~KernelRestorer() { bf16::set_kernel(saved); }
 };
 
+// body(kernel, weights) under each bf16 kernel this CPU runs (AMX's exact arithmetic emulated where it has no
+// AMX), with the layout's matrices packed for it; the kernel in use is put back afterwards.
+template <class Body>
+void for_each_bf16_kernel(const ParamLayout& layout, const std::vector<float>& values, Body&& body) {
+  const KernelRestorer restore;
+  std::vector<bf16::Kernel> kernels = {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated};
+  if (bf16::amx_available()) kernels.push_back(bf16::Kernel::kAmx);
+  for (const bf16::Kernel kern : kernels) {
+    SCOPED_TRACE(bf16::kernel_name(kern));
+    bf16::set_kernel(kern);
+    PackedWeights packed(layout);
+    packed.pack(values.data(), false);
+    body(kern, Weights(values.data(), &packed));
+  }
+}
+
 bool same_bits(const std::vector<float>& a, const std::vector<float>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
 }
@@ -174,15 +190,7 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
   const CMat rows(x.data(), 40, 281, 290);
   EXPECT_EQ(convert_shared(Weights(values.data()), rows).converted, nullptr);
   if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
-  const KernelRestorer restore;
-  std::vector<bf16::Kernel> kernels = {bf16::Kernel::kAvx512Bf16, bf16::Kernel::kAmxEmulated};
-  if (bf16::amx_available()) kernels.push_back(bf16::Kernel::kAmx);
-  for (const bf16::Kernel kern : kernels) {
-    SCOPED_TRACE(bf16::kernel_name(kern));
-    bf16::set_kernel(kern);
-    PackedWeights packed(layout);
-    packed.pack(values.data(), false);
-    const Weights p(values.data(), &packed);
+  for_each_bf16_kernel(layout, values, [&](bf16::Kernel kern, const Weights& p) {
     auto run = [&](const SharedRows& in, std::vector<float>& y0, std::vector<float>& y1,
                    std::vector<float>& y2) {
       y0.assign(size_t(40) * 64, 0.0f);
@@ -206,7 +214,57 @@ TEST(NnProducts, RowsConvertedOnceGiveTheBitsOfConvertingPerProduct) {
         kern == bf16::Kernel::kAvx512Bf16 ? bf16::Kernel::kAmxEmulated : bf16::Kernel::kAvx512Bf16);
     EXPECT_THROW(matmul_bias(p, id0, values.data() + w0, bias.data(), other_kernel, Mat(got0.data(), 40, 64)),
                  std::logic_error);
-  }
+  });
+}
+
+// x^T converted once (convert_shared_t) gives every weight gradient the bits of converting x in each, with a
+// product, a gradient and a row conversion of other rows in between (which use the other scratch buffers).
+// Rows converted for another kernel are refused; fp32 weights and rows that a stage takes are not converted.
+TEST(NnProducts, TransposedRowsConvertedOnceGiveTheBitsOfConvertingPerGradient) {
+  ParamLayout layout;
+  const size_t w0 = layout.add_kernel_xavier("w0", 64, 48, 64.0f, 48.0f);
+  const int id0 = layout.add_product({w0, 64, 48, {}});
+  const std::vector<float> values = testing::random_vector(layout.buffer_floats(), 15);
+  const int rows = 203;  // more than a stage takes, odd
+  const std::vector<float> x = testing::random_vector(size_t(rows) * 70, 16);
+  const std::vector<float> dz0 = testing::random_vector(size_t(rows) * 48, 17);
+  const std::vector<float> dz1 = testing::random_vector(size_t(rows) * 96, 18);
+  const std::vector<float> other = testing::random_vector(size_t(rows) * 64, 19);
+  const CMat xm(x.data(), rows, 64, 70);
+  EXPECT_EQ(convert_shared_t(Weights(values.data()), xm).converted_t, nullptr);
+  if (!bf16::available()) GTEST_SKIP() << "this CPU has no AVX512-BF16";
+  for_each_bf16_kernel(layout, values, [&](bf16::Kernel kern, const Weights& p) {
+    auto run = [&](const SharedRows& in, std::vector<float>& g0, std::vector<float>& g1) {
+      g0 = testing::random_vector(size_t(64) * 48, 20);
+      g1.assign(size_t(64) * 96, 0.0f);
+      std::vector<float> y(size_t(rows) * 48), g_other(size_t(64) * 48, 0.0f);
+      matmul_grad(p, in, CMat(dz0.data(), rows, 48), g0.data(), true);
+      matmul(p, id0, values.data() + w0, CMat(other.data(), rows, 64), Mat(y.data(), rows, 48), false);
+      matmul_grad(p, CMat(other.data(), rows, 64), CMat(dz0.data(), rows, 48), g_other.data(), false);
+      (void)convert_shared(p, CMat(other.data(), rows, 64));
+      matmul_grad(p, in, CMat(dz1.data(), rows, 96), g1.data(), false);
+    };
+    std::vector<float> want0, want1, got0, got1;
+    run(xm, want0, want1);
+    const SharedRows shared = convert_shared_t(p, xm);
+    ASSERT_NE(shared.converted_t, nullptr);
+    run(shared, got0, got1);
+    EXPECT_TRUE(same_bits(got0, want0));
+    EXPECT_TRUE(same_bits(got1, want1));
+    // The same rows under another kernel's layout: refused, not misread.
+    SharedRows other_kernel = shared;
+    other_kernel.kernel =
+        kern == bf16::Kernel::kAvx512Bf16 ? bf16::Kernel::kAmxEmulated : bf16::Kernel::kAvx512Bf16;
+    EXPECT_THROW(matmul_grad(p, other_kernel, CMat(dz0.data(), rows, 48), got0.data(), true),
+                 std::logic_error);
+    // A stage that takes gradients of these rows converts them itself: nothing converted here.
+    GradStage stage;
+    Weights staged = p;
+    staged.stage = &stage;
+    const CMat few(x.data(), GradStage::kMaxRows, 64, 70);
+    EXPECT_EQ(convert_shared_t(staged, few).converted_t == nullptr, GradStage::takes(GradStage::kMaxRows));
+    EXPECT_NE(convert_shared_t(staged, xm).converted_t, nullptr);
+  });
 }
 
 long minor_faults_of_this_thread() {
