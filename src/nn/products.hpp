@@ -135,7 +135,9 @@ void matmul(const Weights& p, int id, const float* w, CMat x, Mat y, bool accumu
 // v projections their common input. A plain CMat or Mat converts to rows without one (each bf16 product
 // converts them itself). The bf16 form lives in the converting thread's scratch: only that thread may use
 // it, until its next convert_shared, while the rows stay as they were and the bf16 kernel stays the one it
-// was converted for (`kernel`, checked by each product).
+// was converted for (`kernel`, checked by each product). The transposed form of convert_shared_t (for weight
+// gradients) lives in a scratch buffer of its own, with the same rules up to the thread's next
+// convert_shared_t.
 struct SharedRows {
   SharedRows(CMat rows) : mat(rows) {}  // NOLINT(google-explicit-constructor): the plain case
   SharedRows(Mat rows) : mat(rows) {}   // NOLINT(google-explicit-constructor): the same

@@ -1,7 +1,8 @@
 // A 16 x 16 transposition of 32-bit elements in AVX-512 registers, for the bf16 packing (nn/bf16_gemm.cpp,
-// inside functions that carry the bf16 extension as a target attribute) and the attention's key
-// transposition (nn/attention.cpp, in AVX-512 builds). Its own target attribute lets both inline it, whatever
-// the library's build flags; call it only where the CPU has AVX-512F.
+// inside functions that carry the bf16 extension as a target attribute), and in AVX-512 builds for the
+// attention's key transposition (nn/attention.cpp), the layer norm's row sums (nn/kernels.cpp) and the lidar
+// conv's output gradients (nn/layers.cpp). Its own target attribute lets every caller inline it, whatever the
+// library's build flags; call it only where the CPU has AVX-512F.
 #pragma once
 
 #include <immintrin.h>

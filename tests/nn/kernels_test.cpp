@@ -379,8 +379,10 @@ TEST(NnKernels, LstmCellMatchesScalarAndFormula) {
     }
     // In place (gates aliasing g) gives the same.
     auto g2 = g;
-    kernels::lstm_cell(g2.data(), c_prev.data(), u, g2.data(), cs.data(), tcs.data(), hs.data());
-    EXPECT_TRUE(same_bits(g2, gates));
+    std::vector<float> c2(u), tc2(u), h2(u);
+    kernels::lstm_cell(g2.data(), c_prev.data(), u, g2.data(), c2.data(), tc2.data(), h2.data());
+    EXPECT_TRUE(same_bits(g2, gates) && same_bits(c2, c) && same_bits(tc2, tc) && same_bits(h2, h))
+        << "u = " << u;
     const auto dh = random_vector(u, 170 + u);
     const auto dc = random_vector(u, 180 + u);
     std::vector<float> dg(4 * u), dgs(4 * u), dcp(u), dcps(u);

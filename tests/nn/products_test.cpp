@@ -257,6 +257,22 @@ TEST(NnProducts, TransposedRowsConvertedOnceGiveTheBitsOfConvertingPerGradient) 
         kern == bf16::Kernel::kAvx512Bf16 ? bf16::Kernel::kAmxEmulated : bf16::Kernel::kAvx512Bf16;
     EXPECT_THROW(matmul_grad(p, other_kernel, CMat(dz0.data(), rows, 48), got0.data(), true),
                  std::logic_error);
+    // With a stage, as in training: a gradient of few rows is staged first, then one of these rows, which the
+    // stage does not take, goes to the same gradient. What the stage holds for it is summed first, then the
+    // shared form's product: the order of converting per gradient.
+    auto staged_run = [&](const SharedRows& in, std::vector<float>& g) {
+      GradStage st;
+      Weights w = p;
+      w.stage = &st;
+      g = testing::random_vector(size_t(64) * 48, 21);
+      matmul_grad(w, CMat(other.data(), 40, 64), CMat(dz0.data(), 40, 48), g.data(), true);
+      matmul_grad(w, in, CMat(dz0.data(), rows, 48), g.data(), true);
+      st.flush();
+    };
+    std::vector<float> want_staged, got_staged;
+    staged_run(xm, want_staged);
+    staged_run(convert_shared_t(p, xm), got_staged);
+    EXPECT_TRUE(same_bits(got_staged, want_staged));
     // A stage that takes gradients of these rows converts them itself: nothing converted here.
     GradStage stage;
     Weights staged = p;
