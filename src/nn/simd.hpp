@@ -53,17 +53,20 @@ inline __mmask16 first_lanes(int count) {
                       : static_cast<__mmask16>((1u << count) - 1u);
 }
 #endif
-// max/min with the x86 rule (a > b ? a : b; a < b ? a : b), identical in both paths. The vector forms are one
-// instruction each: (v)maxps / (v)minps return their second operand b unless a > b (a < b) holds, which is
-// this rule for every input, NaNs and signed zeros included (NnSimd.MaxMinFollowTheScalarRule).
+// max/min with the x86 rule (a > b ? a : b; a < b ? a : b), identical in both paths. With AVX and AVX-512 the
+// vector forms are one instruction each: vmaxps / vminps return their second operand b unless a > b (a < b)
+// holds, which is this rule for every input, NaNs and signed zeros included
+// (NnSimd.MaxMinFollowTheScalarRule). Narrower vectors compare and blend.
 inline float max(float a, float b) {
   return a > b ? a : b;
 }
 inline Batch max(const Batch& a, const Batch& b) {
 #if defined(__AVX512F__)
   return Batch(_mm512_max_ps(a, b));
-#else
+#elif defined(__AVX__)
   return Batch(_mm256_max_ps(a, b));
+#else
+  return xsimd::select(a > b, a, b);
 #endif
 }
 inline float min(float a, float b) {
@@ -72,8 +75,10 @@ inline float min(float a, float b) {
 inline Batch min(const Batch& a, const Batch& b) {
 #if defined(__AVX512F__)
   return Batch(_mm512_min_ps(a, b));
-#else
+#elif defined(__AVX__)
   return Batch(_mm256_min_ps(a, b));
+#else
+  return xsimd::select(a < b, a, b);
 #endif
 }
 inline float select(bool c, float a, float b) {
