@@ -260,12 +260,18 @@ void matmul_grad_fp32(CMat x, CMat dz, float* dw, bool accumulate) {
   product(WeightsMap(dw, x.cols, dz.cols), x.map().transpose(), dz.map(), accumulate);
 }
 
+// x^T in bf16, in gemm_at's layout for the kernel in use, into buf.
+const bf16_t* convert_rows_t(CMat x, FloatBuffer& buf) {
+  bf16_t* at = Scratch::take(buf, bf16::at_elems(x.cols, x.rows));
+  bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, at);
+  return at;
+}
+
 // dw (+)= x^T dz in bf16 with dz already packed (b): A = x^T [x.cols, rows], the sum runs over the rows, in
-// pairs.
-void matmul_grad_bf16(CMat x, const bf16_t* b, int n, float* dw, bool accumulate) {
-  bf16_t* a = Scratch::take(scratch.a, bf16::at_elems(x.cols, x.rows));
-  bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, a);
-  bf16::gemm_at(a, x.cols, x.rows, b, n, dw, n, accumulate);
+// pairs. at: x^T already converted, or null (converted here, in scratch).
+void matmul_grad_bf16(CMat x, const bf16_t* at, const bf16_t* b, int n, float* dw, bool accumulate) {
+  if (at == nullptr) at = convert_rows_t(x, scratch.a);
+  bf16::gemm_at(at, x.cols, x.rows, b, n, dw, n, accumulate);
 }
 
 const bf16_t* pack_dz(CMat dz) {
@@ -279,10 +285,8 @@ const bf16_t* pack_dz(CMat dz) {
 SharedRows convert_shared_t(const Weights& p, CMat x) {
   if (!p.bf16() || (p.stage != nullptr && GradStage::takes(x.rows))) return x;
   HNS_NN_CHECK(p.packed->kernel() == bf16::kernel(), "bf16 weights packed for another kernel");
-  bf16_t* at = Scratch::take(scratch.shared_at, bf16::at_elems(x.cols, x.rows));
-  bf16::convert_a_transposed(x.data, x.stride, x.rows, x.cols, at);
   SharedRows shared(x);
-  shared.converted_t = at;
+  shared.converted_t = convert_rows_t(x, scratch.shared_at);
   shared.kernel = bf16::kernel();
   return shared;
 }
@@ -292,10 +296,9 @@ void matmul_grad(const Weights& p, const SharedRows& x, CMat dz, float* dw, bool
   if (!p.bf16()) return matmul_grad_fp32(xm, dz, dw, accumulate);
   HNS_NN_CHECK(xm.rows == dz.rows, "weight gradient of another row count");
   if (p.stage != nullptr && p.stage->add(xm, dz, dw, accumulate)) return;
-  const bf16_t* b = pack_dz(dz);
-  if (x.converted_t == nullptr) return matmul_grad_bf16(xm, b, dz.cols, dw, accumulate);
-  HNS_NN_CHECK(x.kernel == bf16::kernel(), "bf16 rows converted for another kernel");
-  bf16::gemm_at(x.converted_t, xm.cols, xm.rows, b, dz.cols, dw, dz.cols, accumulate);
+  if (x.converted_t != nullptr)
+    HNS_NN_CHECK(x.kernel == bf16::kernel(), "bf16 rows converted for another kernel");
+  matmul_grad_bf16(xm, x.converted_t, pack_dz(dz), dz.cols, dw, accumulate);
 }
 
 void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CMat dz, bool accumulate) {
@@ -306,8 +309,8 @@ void matmul_grad2(const Weights& p, CMat x0, float* dw0, CMat x1, float* dw1, CM
   }
   if (p.stage != nullptr && p.stage->add2(x0, dw0, x1, dw1, dz, accumulate)) return;
   const bf16_t* b = pack_dz(dz);
-  matmul_grad_bf16(x0, b, dz.cols, dw0, accumulate);
-  matmul_grad_bf16(x1, b, dz.cols, dw1, accumulate);
+  matmul_grad_bf16(x0, nullptr, b, dz.cols, dw0, accumulate);
+  matmul_grad_bf16(x1, nullptr, b, dz.cols, dw1, accumulate);
 }
 
 // ---- GradStage
