@@ -30,6 +30,7 @@
 #include "nn/kernels.hpp"
 #include "nn/precision.hpp"
 #include "physics/scene.hpp"
+#include "ppo/arithmetic.hpp"
 #include "ppo/atomic_file.hpp"
 #include "ppo/policy.hpp"
 #include "ppo/trainer.hpp"
@@ -646,6 +647,8 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
     if (fs::is_directory(run.dir, ec)) run.lock = lock_run_folder("--out", run.dir);
     check_no_run_unless(opt.overwrite, run.dir, run.ckpt);
   }
+  // Ranks on different machines may resolve auto, or choose the bf16 kernel, differently.
+  ppo::check_same_arithmetic(comm, ppo::arithmetic_description(cfg.resolve_precision()));
   ppo::Trainer trainer(cfg, &comm);
   std::string initialized;
   if (const int refused = load_start(trainer, run, lead, initialized)) return refused;

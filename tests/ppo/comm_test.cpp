@@ -3,6 +3,7 @@
 // So the rank logic (blocks, per-block sums, the chain, the sliced action stream) is tested in every build,
 // the sanitizer builds (which have no MPI) included: 2 and 3 ranks end in the state of one process.
 #include "ppo/comm.hpp"
+#include "ppo/arithmetic.hpp"
 #include "ppo/trainer.hpp"
 
 #include <gtest/gtest.h>
@@ -134,6 +135,53 @@ TEST(Comm, MoreRanksThanBlocksIsRefused) {
   Group g(4);
   ThreadComm comm(g, 0);
   EXPECT_THROW(Trainer(c, &comm), physics::ConfigError);
+}
+
+// Each rank's error from check_same_arithmetic with these descriptions ("" where it passed).
+std::vector<std::string> check_arithmetics(const std::vector<std::string>& mine) {
+  const int ranks = static_cast<int>(mine.size());
+  Group g(ranks);
+  std::vector<std::string> errors(static_cast<size_t>(ranks));
+  std::vector<std::thread> threads;
+  for (int r = 0; r < ranks; ++r) {
+    threads.emplace_back([&, r] {
+      ThreadComm comm(g, r);
+      try {
+        check_same_arithmetic(comm, mine[size_t(r)]);
+      } catch (const physics::ConfigError& e) {
+        errors[size_t(r)] = e.what();
+      }
+    });
+  }
+  for (std::thread& t : threads) t.join();
+  return errors;
+}
+
+// Ranks that resolve auto differently, or run bf16 on different kernels, or come from different builds,
+// would train with different roundings (a result that depends on which machine holds which rank): every
+// rank stops with one message naming the first rank that differs and both arithmetics.
+TEST(Comm, RanksThatComputeDifferentlyAreRefusedByName) {
+  const std::string fp32 = arithmetic_description(nn::Precision::kFp32);
+  EXPECT_EQ(fp32.rfind("fp32 (", 0), 0u) << fp32;
+  EXPECT_NE(fp32.find(" build)"), std::string::npos) << fp32;
+  for (const std::string& e : check_arithmetics({fp32, fp32, fp32})) EXPECT_EQ(e, "");
+  const std::string amx = "bf16 on the amx kernel (avx512 build)";
+  const std::string dp = "bf16 on the avx512-bf16 kernel (avx512 build)";
+  for (const auto& [ranks, bad] : std::vector<std::pair<std::vector<std::string>, int>>{
+           {{dp, dp, amx}, 2}, {{amx, dp}, 1}, {{dp, fp32, fp32}, 1}, {{fp32, "fp32 (avx2 build)"}, 1}}) {
+    const std::vector<std::string> errors = check_arithmetics(ranks);
+    for (size_t r = 0; r < ranks.size(); ++r) {
+      const std::string& e = errors[r];
+      EXPECT_NE(e.find("rank " + std::to_string(bad) + " computes in " + ranks[size_t(bad)] +
+                       " and rank 0 in " + ranks[0]),
+                std::string::npos)
+          << "rank " << r << ": " << e;
+      EXPECT_NE(e.find("HNS_BF16_KERNEL=avx512-bf16"), std::string::npos) << e;
+    }
+  }
+  // One process has nothing to compare.
+  SingleProcess one;
+  EXPECT_NO_THROW(check_same_arithmetic(one, fp32));
 }
 
 }  // namespace

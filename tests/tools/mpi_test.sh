@@ -5,7 +5,8 @@
 # bit-identically; a non-finite loss stops every rank with status 3 and the last checkpoint kept; SIGUSR1 to
 # mpirun stops every rank after the same iteration with a checkpoint; a killed rank (rank 1, then rank 0, the
 # one that writes) ends the whole job within seconds with the last checkpoint intact, and the run resumes; a
-# bad rank count and ranks started with different configs are refused with status 2.
+# bad rank count, ranks started with different configs and ranks that compute in different precisions are
+# refused with status 2.
 # Usage: mpi_test.sh path/to/hns path/to/mpirun
 set -u
 hns="$1"
@@ -82,6 +83,16 @@ out="$("$mpirun" --oversubscribe --bind-to none -np 1 "$hns" "${args[@]}" --iter
 rc=$?
 [ "$rc" -eq 2 ] && grep -q "rank 1 starts from another config or checkpoint" <<<"$out" && ok ||
   fail "ranks with different configs -> exit $rc: $out"
+
+# Ranks that compute differently (here one in bf16, one in fp32: as `auto` resolves on machines with and
+# without AVX512-BF16): refused by name before any training, not as a generic config difference.
+if grep -qw avx512_bf16 /proc/cpuinfo; then
+  out="$("$mpirun" --oversubscribe --bind-to none -np 1 "$hns" "${args[@]}" --iterations 1 --precision bf16 \
+    --out "$tmp/mixedp" : -np 1 "$hns" "${args[@]}" --iterations 1 --precision fp32 --out "$tmp/mixedp" 2>&1)"
+  rc=$?
+  [ "$rc" -eq 2 ] && grep -q "rank 1 computes in fp32 (.* build) and rank 0 in bf16 on the" <<<"$out" &&
+    [ ! -e "$tmp/mixedp" ] && ok || fail "ranks in bf16 and fp32 -> exit $rc: $out"
+fi
 
 # Started with one process, resumed with two ranks: the same as the uninterrupted run.
 "$hns" "${args[@]}" --iterations 2 --threads 1 --out "$tmp/resumed" >/dev/null 2>&1 || fail "first leg"
