@@ -27,6 +27,7 @@
 #include "ppo/mpi_comm.hpp"
 #endif
 #include "batch/scenes.hpp"
+#include "nn/bf16_gemm.hpp"
 #include "nn/kernels.hpp"
 #include "nn/precision.hpp"
 #include "physics/scene.hpp"
@@ -305,6 +306,26 @@ int load_start(ppo::Trainer& trainer, const RunSetup& run, bool lead, std::strin
     }
   }
   return 0;
+}
+
+// A bf16 run resumed where another kernel runs its products (AMX tiles or vdpbf16ps, which round
+// differently; metrics.jsonl's first row names the one it started on) continues in the new kernel's
+// arithmetic: said on stderr, since nothing else in the run folder records it.
+void warn_kernel_change(const std::string& earlier_metrics, const ppo::TrainConfig& cfg) {
+  if (cfg.precision != "bf16") return;
+  const std::string first = earlier_metrics.substr(0, earlier_metrics.find('\n'));
+  if (first.empty()) return;
+  const nlohmann::json row = nlohmann::json::parse(first, nullptr, false);
+  if (!row.is_object() || !row.contains("bf16_kernel") || !row["bf16_kernel"].is_string()) return;
+  const std::string started = row["bf16_kernel"].get<std::string>();
+  const std::string now = nn::bf16::kernel_name(nn::bf16::kernel());
+  if (started == now) return;
+  std::fprintf(stderr,
+               "hns train: warning: this bf16 run started on the %s kernel (metrics.jsonl's first row) and "
+               "continues on %s, which rounds differently: from here on it is not the run it would have been "
+               "on %s%s\n",
+               started.c_str(), now.c_str(), started.c_str(),
+               started == "avx512-bf16" ? " (HNS_BF16_KERNEL=avx512-bf16 keeps the first kernel)" : "");
 }
 
 // Every rank must start from the same state: the same config and, resuming or starting from a checkpoint,
@@ -659,7 +680,10 @@ int run_train(const TrainOptions& opt, ppo::Comm& comm) {
   if (!run.resume) remove_old_run_files(run);
 
   std::string earlier_metrics;
-  if (run.resume) earlier_metrics = truncate_metrics(run.metrics_path, trainer.iteration());
+  if (run.resume) {
+    earlier_metrics = truncate_metrics(run.metrics_path, trainer.iteration());
+    warn_kernel_change(earlier_metrics, cfg);
+  }
   write_atomically(run.config_path, cfg.to_json());
   print_run_start(trainer, run, comm, initialized);
 

@@ -225,25 +225,43 @@ void gemm_tiles(const ATiles& a, int rows, int kp, const bf16_t* b, int n, float
   T::release();
 }
 
-bool detect() {
+Support detect() {
   unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  if (__get_cpuid(1, &eax, &ebx, &ecx, &edx) == 0 || ((ecx >> 27) & 1u) == 0) return false;  // OSXSAVE
-  if (__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx) == 0) return false;
-  if (((edx >> 24) & 1u) == 0 || ((edx >> 22) & 1u) == 0) return false;  // AMX-TILE, AMX-BF16
+  if (__get_cpuid(1, &eax, &ebx, &ecx, &edx) == 0 || ((ecx >> 27) & 1u) == 0)
+    return Support::kNoCpu;  // OSXSAVE
+  if (__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx) == 0) return Support::kNoCpu;
+  if (((edx >> 24) & 1u) == 0 || ((edx >> 22) & 1u) == 0) return Support::kNoCpu;  // AMX-TILE, AMX-BF16
   uint32_t xcr0_lo = 0, xcr0_hi = 0;
   asm volatile("xgetbv" : "=a"(xcr0_lo), "=d"(xcr0_hi) : "c"(0));
   constexpr uint32_t kTileState = (1u << 17) | (1u << 18);  // XTILECFG, XTILEDATA
-  if ((xcr0_lo & kTileState) != kTileState) return false;
+  if ((xcr0_lo & kTileState) != kTileState) return Support::kNoOs;
   // Linux hands out the 8 KiB tile data state per process on request.
   constexpr long kArchReqXcompPerm = 0x1023, kXfeatureXtiledata = 18;
-  return syscall(SYS_arch_prctl, kArchReqXcompPerm, kXfeatureXtiledata) == 0;
+  return syscall(SYS_arch_prctl, kArchReqXcompPerm, kXfeatureXtiledata) == 0 ? Support::kUsable
+                                                                             : Support::kRefused;
 }
 
 }  // namespace
 
+Support support() {
+  static const Support s = detect();
+  return s;
+}
+
 bool hardware_available() {
-  static const bool ok = detect();
-  return ok;
+  return support() == Support::kUsable;
+}
+
+const char* unusable_reason(Support s) {
+  switch (s) {
+    case Support::kNoOs:
+      return "the OS does not enable their state (XCR0; Linux 5.16 or later does)";
+    case Support::kRefused:
+      return "Linux refused this process their state (arch_prctl ARCH_REQ_XCOMP_PERM; a seccomp or container "
+             "policy may forbid it)";
+    default:
+      return "";
+  }
 }
 
 void gemm(const ATiles& a, int rows, int kp, const bf16_t* b, int n, float* c, ptrdiff_t ldc, bool accumulate,

@@ -25,9 +25,16 @@ using bf16_t = uint16_t;
 inline constexpr int kTileRows = 16;   // rows of a tile (of C and A)
 inline constexpr int kTilePairs = 16;  // k pairs per A and B tile
 
-// True when this CPU has AMX-TILE and AMX-BF16, the OS saves the tile state (XCR0) and Linux granted this
-// process the tile data (arch_prctl ARCH_REQ_XCOMP_PERM, asked once).
+// Whether this process can run AMX-BF16 tiles, and if not, why: the CPU lacks AMX-TILE or AMX-BF16, the OS
+// does not save the tile state (XCR0: Linux before 5.16), or Linux refused this process the tile data
+// (arch_prctl ARCH_REQ_XCOMP_PERM, asked once; a seccomp or container policy can refuse it).
+enum class Support { kUsable, kNoCpu, kNoOs, kRefused };
+Support support();
+// True when support() is kUsable.
 bool hardware_available();
+// Why tiles the CPU has cannot run here, as a clause for the start line ("the OS ..."); empty for kUsable
+// and kNoCpu.
+const char* unusable_reason(Support s);
 
 // Where A's tiles lie: the tile of row block rb and pair block pb starts at base + rb * row_block +
 // pb * pair_block (in bf16 elements); its rows are stride_bytes apart.

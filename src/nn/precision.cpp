@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 
+#include "nn/bf16_amx.hpp"
 #include "nn/bf16_gemm.hpp"
 #include "nn/kernels.hpp"
 
@@ -48,8 +49,12 @@ std::string precision_description(Precision p) {
         return "bf16 (bf16 operands, float accumulation: AMX-BF16 tiles)";
       case bf16::Kernel::kAmxEmulated:
         return "bf16 (bf16 operands, float accumulation: AMX-BF16 tiles, emulated)";
-      default:
-        return "bf16 (bf16 operands, float accumulation: AVX512-BF16 vdpbf16ps)";
+      default: {
+        // A CPU whose tiles cannot run here says why: they would be the faster kernel.
+        const std::string why = bf16::amx::unusable_reason(bf16::amx::support());
+        return "bf16 (bf16 operands, float accumulation: AVX512-BF16 vdpbf16ps" +
+               (why.empty() ? std::string() : "; this CPU's AMX-BF16 tiles are unusable here: " + why) + ")";
+      }
     }
   }
   return "fp32 (" + kernels::isa_description() + ")";

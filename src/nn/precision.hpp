@@ -44,7 +44,8 @@ Precision resolve_precision(std::string_view requested, const CpuFeatures& cpu =
 std::vector<std::string> precision_names();  // the accepted requests: fp32, bf16, auto
 
 // What runs the products at precision p on this machine, for start lines and JSON records, e.g.
-// "bf16 (AVX512-BF16 vdpbf16ps, float accumulation)" or "fp32 (avx512 build: AVX-512, 16 floats ...)".
+// "bf16 (bf16 operands, float accumulation: AVX512-BF16 vdpbf16ps)" or "fp32 (avx512 (AVX-512, 16 floats
+// per vector, FMA))".
 std::string precision_description(Precision p);
 
 }  // namespace hns::nn

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <vector>
 
+#include "nn/bf16_amx.hpp"
 #include "nn/bf16_gemm.hpp"
 #include "nn/kernels.hpp"
 #include "nn/layers.hpp"
@@ -617,6 +618,26 @@ TEST(NnPrecision, ChooserRefusesBf16WithoutTheFeatureAndResolvesAuto) {
   }
   EXPECT_THROW(resolve_precision("fp16", with), std::invalid_argument);
   EXPECT_EQ(CpuFeatures::detect().avx512_bf16, bf16::available());
+}
+
+// A CPU with AMX tiles that this process cannot use runs vdpbf16ps, and the start line says why (the tiles
+// would be the faster kernel): the OS without the tile state, or Linux refusing this process. A CPU without
+// tiles, or with usable ones, has nothing to say.
+TEST(NnPrecision, UnusableAmxTilesAreExplained) {
+  using bf16::amx::Support;
+  EXPECT_STREQ(bf16::amx::unusable_reason(Support::kUsable), "");
+  EXPECT_STREQ(bf16::amx::unusable_reason(Support::kNoCpu), "");
+  EXPECT_NE(std::string(bf16::amx::unusable_reason(Support::kNoOs)).find("Linux 5.16"), std::string::npos);
+  EXPECT_NE(std::string(bf16::amx::unusable_reason(Support::kRefused)).find("ARCH_REQ_XCOMP_PERM"),
+            std::string::npos);
+  EXPECT_EQ(bf16::amx::hardware_available(), bf16::amx::support() == Support::kUsable);
+  if (!bf16::available() || bf16::kernel() != bf16::Kernel::kAvx512Bf16) return;
+  const std::string line = precision_description(Precision::kBf16);
+  const std::string why = bf16::amx::unusable_reason(bf16::amx::support());
+  EXPECT_EQ(line.find("unusable here") != std::string::npos, !why.empty()) << line;
+  if (!why.empty()) {
+    EXPECT_NE(line.find(why), std::string::npos) << line;
+  }
 }
 
 }  // namespace

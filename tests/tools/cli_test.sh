@@ -377,6 +377,25 @@ refused_start SLURM_STEP_NUM_TASKS=4 "started by srun as 4 tasks without MPI"
 if grep -qw avx512_bf16 /proc/cpuinfo; then
   refused_start HNS_BF16_KERNEL=bogus "HNS_BF16_KERNEL='bogus'" --precision bf16
   grep -qw amx_bf16 /proc/cpuinfo || refused_start HNS_BF16_KERNEL=amx "HNS_BF16_KERNEL=amx" --precision bf16
+  # A bf16 run resumed where the other kernel runs (a machine with AMX after one without, or the reverse:
+  # here the first metrics row is made to name the other kernel) continues with a warning that says so;
+  # resumed on the kernel it started on, it says nothing.
+  rm -rf "$tmp/bfk"
+  if "$hns" train --config "$tmp/train.json" --precision bf16 --threads 1 --iterations 1 --out "$tmp/bfk" \
+       >"$tmp/log" 2>&1 &&
+     "$hns" train --resume "$tmp/bfk" --iterations 2 --threads 1 >>"$tmp/log" 2>&1 &&
+     ! grep -q "bf16 run started on the" "$tmp/log" &&
+     kern="$(head -1 "$tmp/bfk/metrics.jsonl" | grep -o '"bf16_kernel": "[a-z0-9-]*"' | cut -d'"' -f4)" &&
+     if [ "$kern" = amx ]; then other=avx512-bf16; else other=amx; fi &&
+     sed -i "1s/\"bf16_kernel\": \"$kern\"/\"bf16_kernel\": \"$other\"/" "$tmp/bfk/metrics.jsonl" &&
+     "$hns" train --resume "$tmp/bfk" --iterations 3 --threads 1 >"$tmp/log" 2>&1 &&
+     grep -q "warning: this bf16 run started on the $other kernel (metrics.jsonl's first row) and continues on $kern" \
+       "$tmp/log"; then
+    passed=$((passed + 1))
+  else
+    failed=$((failed + 1))
+    echo "FAIL: a bf16 run resumed on another kernel warns (and on its own kernel does not)"; cat "$tmp/log"
+  fi
 fi
 # A build without MPI started by an MPI launcher as one of several processes (its environment says so):
 # refused (each process would train the whole run alone). Only where hns has no MPI: an MPI build would join
