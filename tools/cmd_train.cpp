@@ -309,8 +309,9 @@ int load_start(ppo::Trainer& trainer, const RunSetup& run, bool lead, std::strin
 }
 
 // A bf16 run resumed where another kernel runs its products (AMX tiles or vdpbf16ps, which round
-// differently; metrics.jsonl's first row names the one it started on) continues in the new kernel's
-// arithmetic: said on stderr, since nothing else in the run folder records it.
+// differently) than the one it started on (metrics.jsonl's first row names it) continues in the new
+// kernel's arithmetic: said on stderr, since nothing else in the run folder records it. (Only the first
+// kernel is recorded, so a later leg back on it says nothing.)
 void warn_kernel_change(const std::string& earlier_metrics, const ppo::TrainConfig& cfg) {
   if (cfg.precision != "bf16") return;
   const std::string first = earlier_metrics.substr(0, earlier_metrics.find('\n'));
@@ -322,8 +323,8 @@ void warn_kernel_change(const std::string& earlier_metrics, const ppo::TrainConf
   if (started == now) return;
   std::fprintf(stderr,
                "hns train: warning: this bf16 run started on the %s kernel (metrics.jsonl's first row) and "
-               "continues on %s, which rounds differently: from here on it is not the run it would have been "
-               "on %s%s\n",
+               "this leg runs on %s, which rounds differently: the run is not the one it would have been on "
+               "%s alone%s\n",
                started.c_str(), now.c_str(), started.c_str(),
                started == "avx512-bf16" ? " (HNS_BF16_KERNEL=avx512-bf16 keeps the first kernel)" : "");
 }

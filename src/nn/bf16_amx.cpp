@@ -227,10 +227,10 @@ void gemm_tiles(const ATiles& a, int rows, int kp, const bf16_t* b, int n, float
 
 Support detect() {
   unsigned eax = 0, ebx = 0, ecx = 0, edx = 0;
-  if (__get_cpuid(1, &eax, &ebx, &ecx, &edx) == 0 || ((ecx >> 27) & 1u) == 0)
-    return Support::kNoCpu;  // OSXSAVE
   if (__get_cpuid_count(7, 0, &eax, &ebx, &ecx, &edx) == 0) return Support::kNoCpu;
   if (((edx >> 24) & 1u) == 0 || ((edx >> 22) & 1u) == 0) return Support::kNoCpu;  // AMX-TILE, AMX-BF16
+  // The CPU has the tiles; the OS must save their state (OSXSAVE, then XCR0's tile bits).
+  if (__get_cpuid(1, &eax, &ebx, &ecx, &edx) == 0 || ((ecx >> 27) & 1u) == 0) return Support::kNoOs;
   uint32_t xcr0_lo = 0, xcr0_hi = 0;
   asm volatile("xgetbv" : "=a"(xcr0_lo), "=d"(xcr0_hi) : "c"(0));
   constexpr uint32_t kTileState = (1u << 17) | (1u << 18);  // XTILECFG, XTILEDATA

@@ -389,7 +389,7 @@ if grep -qw avx512_bf16 /proc/cpuinfo; then
      if [ "$kern" = amx ]; then other=avx512-bf16; else other=amx; fi &&
      sed -i "1s/\"bf16_kernel\": \"$kern\"/\"bf16_kernel\": \"$other\"/" "$tmp/bfk/metrics.jsonl" &&
      "$hns" train --resume "$tmp/bfk" --iterations 3 --threads 1 >"$tmp/log" 2>&1 &&
-     grep -q "warning: this bf16 run started on the $other kernel (metrics.jsonl's first row) and continues on $kern" \
+     grep -q "warning: this bf16 run started on the $other kernel (metrics.jsonl's first row) and this leg runs on $kern" \
        "$tmp/log"; then
     passed=$((passed + 1))
   else
