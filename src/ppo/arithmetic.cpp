@@ -1,5 +1,6 @@
 #include "ppo/arithmetic.hpp"
 
+#include <cmath>
 #include <stdexcept>
 #include <vector>
 
@@ -32,7 +33,7 @@ void check_same_arithmetic(Comm& comm, const std::string& mine) {
   const size_t n = static_cast<size_t>(comm.size());
   bool sized = all.size() == n * kChars;
   for (size_t i = 0; sized && i < all.size(); ++i)
-    sized = all[i] == static_cast<double>(static_cast<int>(all[i])) && all[i] >= 0.0 && all[i] <= 255.0;
+    sized = all[i] >= 0.0 && all[i] <= 255.0 && all[i] == std::floor(all[i]);  // range first: no cast
   if (!sized) {
     throw physics::ConfigError(
         "the ranks run different hns builds (their start-up checks differ): every rank must run the same "
